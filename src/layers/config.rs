@@ -1,0 +1,195 @@
+//! Slicer settings a file carries about itself.
+//!
+//! Input: the head and tail of a G-code file (config blocks sit at the end for PrusaSlicer,
+//! SuperSlicer, OrcaSlicer and Slic3r, in the header for Simplify3D and Cura) and the process
+//! environment (`SLIC3R_*`, exported by PrusaSlicer-family slicers to post-processing scripts).
+//! Output: a [`SlicerConfig`] with typed getters and safe defaults.
+//!
+//! Precedence: file values < `SLIC3R_*` environment values (the slicer's values at export time).
+
+use std::collections::HashMap;
+
+/// Key/value settings, keys in PrusaSlicer spelling.
+#[derive(Debug, Clone, Default)]
+pub struct SlicerConfig {
+    values: HashMap<String, String>,
+    /// Keys that came from the environment.
+    from_env: Vec<String>,
+}
+
+/// How many bytes of the head and of the tail of a file hold its configuration.
+pub const HEAD_BYTES: u64 = 64 * 1024;
+pub const TAIL_BYTES: u64 = 512 * 1024;
+
+impl SlicerConfig {
+    /// Parses `; key = value` lines (PrusaSlicer family, Slic3r, Orca), Simplify3D's
+    /// `;   key,value` header lines and Cura's `;Layer height: 0.2` header lines.
+    pub fn parse(text: &[u8]) -> Self {
+        let mut cfg = SlicerConfig::default();
+        cfg.add_text(text);
+        cfg
+    }
+
+    pub fn add_text(&mut self, text: &[u8]) {
+        for line in text.split(|&b| b == b'\n') {
+            let Some(rest) = line.strip_prefix(b";") else {
+                continue;
+            };
+            let Ok(rest) = std::str::from_utf8(rest) else {
+                continue;
+            };
+            let rest = rest.trim();
+            if let Some((k, v)) = rest.split_once(" = ") {
+                let k = k.trim();
+                if !k.is_empty() && k.bytes().all(|b| b.is_ascii_alphanumeric() || b == b'_') {
+                    self.values.insert(k.to_string(), v.trim().to_string());
+                }
+            } else if let Some((k, v)) = rest.split_once(',') {
+                // Simplify3D: `;   filamentDiameters,1.75`
+                let key = match k.trim() {
+                    "filamentDiameters" => "filament_diameter",
+                    "extruderDiameter" => "nozzle_diameter",
+                    "layerHeight" => "layer_height",
+                    "extruderWidth" => "extrusion_width",
+                    "useRelativeEDistances" | "relativeEdistances" => "use_relative_e_distances",
+                    _ => continue,
+                };
+                self.values.insert(key.to_string(), v.trim().to_string());
+            } else if let Some(v) = rest.strip_prefix("Layer height:") {
+                self.values
+                    .insert("layer_height".to_string(), v.trim().to_string());
+            }
+        }
+    }
+
+    /// Overrides with `SLIC3R_<KEY>` variables from `vars`.
+    pub fn apply_env<I: IntoIterator<Item = (String, String)>>(&mut self, vars: I) {
+        for (k, v) in vars {
+            if let Some(key) = k.strip_prefix("SLIC3R_") {
+                let key = key.to_ascii_lowercase();
+                self.from_env.push(key.clone());
+                self.values.insert(key, v);
+            }
+        }
+    }
+
+    pub fn get(&self, key: &str) -> Option<&str> {
+        self.values.get(key).map(String::as_str)
+    }
+
+    pub fn is_from_env(&self, key: &str) -> bool {
+        self.from_env.iter().any(|k| k == key)
+    }
+
+    pub fn len(&self) -> usize {
+        self.values.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.values.is_empty()
+    }
+
+    /// First number of a (possibly comma-separated, per-extruder) value.
+    pub fn number(&self, key: &str) -> Option<f64> {
+        let v = self.get(key)?;
+        let first = v.split([',', ';', '|']).next()?.trim();
+        let x: f64 = first.trim_end_matches("mm").trim().parse().ok()?;
+        x.is_finite().then_some(x)
+    }
+
+    pub fn bool(&self, key: &str) -> Option<bool> {
+        match self.get(key)?.trim() {
+            "1" | "true" | "True" => Some(true),
+            "0" | "false" | "False" => Some(false),
+            _ => None,
+        }
+    }
+
+    pub fn filament_diameter(&self) -> f64 {
+        self.number("filament_diameter")
+            .filter(|d| (0.5..=5.0).contains(d))
+            .unwrap_or(1.75)
+    }
+
+    pub fn nozzle_diameter(&self) -> f64 {
+        self.number("nozzle_diameter")
+            .filter(|d| (0.05..=3.0).contains(d))
+            .unwrap_or(0.4)
+    }
+
+    pub fn layer_height(&self) -> Option<f64> {
+        self.number("layer_height").filter(|h| *h > 0.0 && *h < 5.0)
+    }
+
+    /// A width setting in mm, resolving PrusaSlicer's `0` (auto) and percentages (of the
+    /// nozzle diameter, or of the layer height for `first_layer_extrusion_width`).
+    pub fn width(&self, key: &str) -> Option<f64> {
+        let v = self.get(key)?.trim();
+        let nozzle = self.nozzle_diameter();
+        if let Some(p) = v.strip_suffix('%') {
+            let p: f64 = p.trim().parse().ok()?;
+            return Some(p / 100.0 * nozzle).filter(|w| *w > 0.0);
+        }
+        let w: f64 = v.trim_end_matches("mm").parse().ok()?;
+        (w > 0.0 && w.is_finite()).then_some(w)
+    }
+
+    /// External perimeter width in mm, falling back to the general extrusion width and then
+    /// to Slic3r's automatic width (1.125 x nozzle).
+    pub fn external_perimeter_width(&self) -> f64 {
+        self.width("external_perimeter_extrusion_width")
+            .or_else(|| self.width("extrusion_width"))
+            .unwrap_or(1.125 * self.nozzle_diameter())
+    }
+
+    pub fn relative_e(&self) -> Option<bool> {
+        self.bool("use_relative_e_distances")
+    }
+
+    pub fn retract_length(&self) -> f64 {
+        self.number("retract_length").unwrap_or(0.8).max(0.0)
+    }
+
+    /// Filament density in g/cm3.
+    pub fn filament_density(&self) -> f64 {
+        self.number("filament_density")
+            .filter(|d| *d > 0.0)
+            .unwrap_or(1.24)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn reads_prusaslicer_block_and_env_overrides() {
+        let text = b"; prusaslicer_config = begin\n; filament_diameter = 2.85,1.75\n\
+; nozzle_diameter = 0.6\n; external_perimeter_extrusion_width = 150%\n\
+; use_relative_e_distances = 1\n; prusaslicer_config = end\n";
+        let mut c = SlicerConfig::parse(text);
+        assert_eq!(c.filament_diameter(), 2.85);
+        assert!((c.external_perimeter_width() - 0.9).abs() < 1e-12);
+        assert_eq!(c.relative_e(), Some(true));
+        c.apply_env([
+            ("SLIC3R_FILAMENT_DIAMETER".to_string(), "1.75".to_string()),
+            ("PATH".to_string(), "/bin".to_string()),
+        ]);
+        assert_eq!(c.filament_diameter(), 1.75);
+        assert!(c.is_from_env("filament_diameter"));
+    }
+
+    #[test]
+    fn simplify3d_and_cura_headers() {
+        let c = SlicerConfig::parse(b";   filamentDiameters,1.75|1.75\n;Layer height: 0.15\n");
+        assert_eq!(c.layer_height(), Some(0.15));
+        assert_eq!(c.filament_diameter(), 1.75);
+    }
+
+    #[test]
+    fn defaults_for_nonsense() {
+        let c = SlicerConfig::parse(b"; filament_diameter = banana\n; nozzle_diameter = -1\n");
+        assert_eq!(c.filament_diameter(), 1.75);
+        assert_eq!(c.nozzle_diameter(), 0.4);
+    }
+}

@@ -1,0 +1,953 @@
+//! Stage 3: the layer model, whatever slicer wrote the file.
+//!
+//! Input: a byte stream of G-code (read through [`crate::gcode`] and interpreted by
+//! [`crate::machine`]) plus the file's [`SlicerConfig`]. Output: an iterator of [`Layer`]s in
+//! file order, each with its Z, height, extrusion [`Path`]s (polyline, width, height, role,
+//! object, source lines) and, on request, its raw bytes.
+//!
+//! Invariants:
+//! - Streaming: one layer is built at a time; memory does not grow with the file.
+//! - Every input line belongs to exactly one emitted [`Layer`] (the preamble before the first
+//!   layer is a [`LayerKind::Preamble`] block), in order, so concatenating `raw` of all layers
+//!   reproduces the input byte for byte when `keep_raw` is on.
+//! - Layer boundaries come from the slicer's own markers when the file has them; otherwise from
+//!   the Z at which material is extruded (travel lifts and z-hops never start a layer).
+
+pub mod config;
+pub mod dialect;
+
+use std::collections::VecDeque;
+use std::io::{self, BufRead};
+
+use serde::Serialize;
+
+pub use config::SlicerConfig;
+pub use dialect::{MarkerKind, Role, Slicer, Tag};
+
+use crate::gcode::{parse_line, strip_terminator, Command, LineReader};
+use crate::machine::{Action, Diagnostics, Machine, Move};
+
+/// Two Z values closer than this (mm) are the same layer.
+const Z_EPS: f64 = 1e-4;
+/// Arcs are linearized with chords no farther than this from the true arc (mm).
+const ARC_TOLERANCE: f64 = 0.01;
+/// While undecided whether a file has layer markers, at most this many inferred layers are
+/// held back before settling on Z inference (markers, when present, come first).
+const HOLD_LAYERS: usize = 3;
+/// Layers held while a header promises markers that never come.
+const HOLD_LAYERS_PROMISED: usize = 50;
+
+/// One continuous extrusion: consecutive extruding moves with the same attributes.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Path {
+    pub role: Role,
+    /// Width in mm: from the slicer's comment when it gives one, else from E by the flow model.
+    pub width: f64,
+    /// Bead height in mm.
+    pub height: f64,
+    /// Z at which it is printed.
+    pub z: f64,
+    /// Index into [`LayerReader::objects`].
+    pub object: Option<u32>,
+    pub tool: u32,
+    /// XY polyline; arcs are linearized.
+    pub points: Vec<[f64; 2]>,
+    /// Source line of each segment (`points.len() - 1` entries).
+    pub seg_line: Vec<u64>,
+    /// Filament (mm of E) of each segment.
+    pub seg_e: Vec<f64>,
+    /// Feedrate of the path's first move, mm/min.
+    pub feed: f64,
+}
+
+impl Path {
+    pub fn length(&self) -> f64 {
+        self.points
+            .windows(2)
+            .map(|w| (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]))
+            .sum()
+    }
+
+    pub fn e(&self) -> f64 {
+        self.seg_e.iter().sum()
+    }
+
+    /// Width of the bead the path's E makes at its height (Slic3r flow model:
+    /// cross-section = (w - h) h + pi (h/2)^2).
+    pub fn e_width(&self, filament_area: f64) -> f64 {
+        flow_width(self.e(), self.length(), self.height, filament_area)
+    }
+}
+
+/// Bead width from extruded filament (mm), path length (mm), layer height (mm) and filament
+/// cross-section (mm2), by the Slic3r flow model. Zero when undefined.
+pub fn flow_width(e: f64, length: f64, height: f64, filament_area: f64) -> f64 {
+    if length <= 1e-9 || height <= 1e-9 {
+        return 0.0;
+    }
+    let area = e * filament_area / length;
+    area / height + height * (1.0 - std::f64::consts::FRAC_PI_4)
+}
+
+/// Filament cross-section in mm2 for a diameter in mm.
+pub fn filament_area(diameter: f64) -> f64 {
+    std::f64::consts::PI * diameter * diameter / 4.0
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LayerKind {
+    /// Lines before the first layer (start G-code, priming).
+    Preamble,
+    Layer,
+}
+
+/// One layer (or the preamble) with its extrusions.
+#[derive(Debug, Clone)]
+pub struct Layer {
+    pub kind: LayerKind,
+    /// 0-based index among layers of kind [`LayerKind::Layer`].
+    pub index: usize,
+    /// The slicer's own layer number, where the marker carries one.
+    pub marker_number: Option<i64>,
+    pub z: f64,
+    pub height: f64,
+    pub paths: Vec<Path>,
+    /// First and last source line (inclusive). An empty block has `last_line < first_line`.
+    pub first_line: u64,
+    pub last_line: u64,
+    /// The exact bytes of the block's lines when `keep_raw` is on, else empty.
+    pub raw: Vec<u8>,
+}
+
+impl Layer {
+    pub fn line_count(&self) -> u64 {
+        (self.last_line + 1).saturating_sub(self.first_line)
+    }
+}
+
+/// How layer boundaries are found.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LayerSource {
+    /// Not settled yet.
+    Undecided,
+    /// The slicer's layer markers.
+    Markers,
+    /// The Z of extrusion moves.
+    InferredFromZ,
+}
+
+/// Options for [`LayerReader`].
+#[derive(Debug, Clone, Default)]
+pub struct ReaderOptions {
+    /// Keep each layer's raw bytes (needed to rewrite; not for analysis).
+    pub keep_raw: bool,
+    pub config: SlicerConfig,
+}
+
+#[derive(Debug)]
+struct Builder {
+    kind: LayerKind,
+    marker_number: Option<i64>,
+    z_tag: Option<f64>,
+    height_tag: Option<f64>,
+    extrusion_z: Option<f64>,
+    first_line: u64,
+    last_line: u64,
+    raw: Vec<u8>,
+    paths: Vec<Path>,
+}
+
+impl Builder {
+    fn new(kind: LayerKind, first_line: u64) -> Self {
+        Builder {
+            kind,
+            marker_number: None,
+            z_tag: None,
+            height_tag: None,
+            extrusion_z: None,
+            first_line,
+            last_line: first_line.wrapping_sub(1),
+            raw: Vec::new(),
+            paths: Vec::new(),
+        }
+    }
+}
+
+/// Facts about the whole file gathered while reading.
+#[derive(Debug, Clone, Serialize)]
+pub struct FileFacts {
+    pub slicer: Slicer,
+    pub slicer_version: String,
+    pub layer_source: LayerSource,
+    pub spiral_vase: bool,
+    /// `; filament used [mm] = ...` (or Cura's `;Filament used: ...m`) as the slicer stated it.
+    pub stated_filament_mm: Option<f64>,
+    pub lines: u64,
+    pub bytes: u64,
+}
+
+/// Streams [`Layer`]s out of G-code.
+pub struct LayerReader<R> {
+    lines: LineReader<R>,
+    buf: Vec<u8>,
+    machine: Machine,
+    keep_raw: bool,
+    filament_area: f64,
+    config_layer_height: Option<f64>,
+    facts: FileFacts,
+    /// Object names, indexed by [`Path::object`].
+    pub objects: Vec<String>,
+    /// What identifies each object in the file (label text, M486 id).
+    object_keys: Vec<String>,
+    diagnostics: Diagnostics,
+    marker_kind: Option<MarkerKind>,
+    markers_promised: bool,
+    role_tag: Option<Role>,
+    cura_bridge: bool,
+    width_tag: Option<f64>,
+    height_tag: Option<f64>,
+    object: Option<u32>,
+    in_config: bool,
+    cur: Builder,
+    open_path: Option<Path>,
+    /// (raw offset, line) of the first Z change since the last extrusion.
+    z_change: Option<(usize, u64)>,
+    held: Vec<Layer>,
+    ready: VecDeque<Layer>,
+    next_index: usize,
+    prev_layer_z: f64,
+    last_height: f64,
+    done: bool,
+}
+
+impl<R: BufRead> LayerReader<R> {
+    pub fn new(input: R, options: ReaderOptions) -> Self {
+        let cfg = &options.config;
+        let mut machine = Machine::new();
+        // A file that never says M82/M83 follows its slicer's setting.
+        if cfg.relative_e() == Some(true) {
+            let p = parse_line(b"M83");
+            machine.step(&p, 0);
+            machine.e_modes.relative = false;
+        }
+        LayerReader {
+            lines: LineReader::new(input),
+            buf: Vec::with_capacity(256),
+            machine,
+            keep_raw: options.keep_raw,
+            filament_area: filament_area(cfg.filament_diameter()),
+            config_layer_height: cfg.layer_height(),
+            facts: FileFacts {
+                slicer: Slicer::Unknown,
+                slicer_version: String::new(),
+                layer_source: LayerSource::Undecided,
+                spiral_vase: false,
+                stated_filament_mm: None,
+                lines: 0,
+                bytes: 0,
+            },
+            objects: Vec::new(),
+            object_keys: Vec::new(),
+            diagnostics: Diagnostics::default(),
+            marker_kind: None,
+            markers_promised: false,
+            role_tag: None,
+            cura_bridge: false,
+            width_tag: None,
+            height_tag: None,
+            object: None,
+            in_config: false,
+            cur: Builder::new(LayerKind::Preamble, 1),
+            open_path: None,
+            z_change: None,
+            held: Vec::new(),
+            ready: VecDeque::new(),
+            next_index: 0,
+            prev_layer_z: 0.0,
+            last_height: 0.0,
+            done: false,
+        }
+    }
+
+    pub fn facts(&self) -> &FileFacts {
+        &self.facts
+    }
+
+    pub fn machine(&self) -> &Machine {
+        &self.machine
+    }
+
+    /// Reader diagnostics merged with the interpreter's.
+    pub fn diagnostics(&self) -> Diagnostics {
+        let mut d = self.diagnostics.clone();
+        d.merge(&self.machine.diagnostics);
+        d
+    }
+
+    pub fn filament_area(&self) -> f64 {
+        self.filament_area
+    }
+
+    fn handle_line(&mut self, number: u64) {
+        let raw = std::mem::take(&mut self.buf);
+        let content = strip_terminator(&raw);
+        let parsed = parse_line(content);
+
+        if let Some(comment) = parsed.comment {
+            self.handle_comment(comment, number, matches!(parsed.command, Command::Empty));
+        }
+
+        match parsed.command {
+            Command::Extended { name, params } => self.handle_extended(name, params),
+            Command::Code {
+                letter: b'M',
+                number: 486.0,
+            } => self.handle_m486(&parsed, content),
+            Command::Unknown(text) if text.starts_with(b"M486") => {
+                self.handle_m486(&parsed, content)
+            }
+            _ => {}
+        }
+
+        let action = self.machine.step(&parsed, number);
+        match action {
+            Action::Move(m) => self.handle_move(&m, number),
+            Action::FirmwareRetract | Action::FirmwareUnretract | Action::Tool(_) => {
+                self.close_path()
+            }
+            _ => {}
+        }
+
+        if self.keep_raw {
+            self.cur.raw.extend_from_slice(&raw);
+        }
+        self.cur.last_line = number;
+        self.facts.lines = number;
+        self.facts.bytes += raw.len() as u64;
+        self.buf = raw;
+    }
+
+    fn handle_comment(&mut self, comment: &[u8], number: u64, whole_line: bool) {
+        let text = String::from_utf8_lossy(comment);
+        if self.in_config {
+            if matches!(dialect::parse_tag(&text), Some(Tag::ConfigEnd)) {
+                self.in_config = false;
+            }
+            return;
+        }
+        if whole_line && self.facts.slicer == Slicer::Unknown && number <= 400 {
+            if let Some((slicer, version)) = dialect::detect(&text) {
+                self.facts.slicer = slicer;
+                self.facts.slicer_version = version;
+                self.markers_promised = slicer.writes_layer_markers();
+                return;
+            }
+        }
+        let Some(tag) = dialect::parse_tag(&text) else {
+            if !whole_line && self.facts.slicer == Slicer::Slic3r {
+                // Slic3r 1.3 only says what a move is in a trailing comment.
+                if let Some(role) = Role::from_slicer_name(&text) {
+                    self.set_role(Some(role));
+                }
+            }
+            if whole_line {
+                self.stated_filament(&text);
+            }
+            return;
+        };
+        match tag {
+            Tag::LayerChange { kind, number: n, z } => self.marker(kind, n, z, number),
+            Tag::Z(z) => {
+                if self.cur.kind == LayerKind::Layer && self.cur.z_tag.is_none() {
+                    self.cur.z_tag = Some(z);
+                }
+            }
+            Tag::Height(h) => {
+                if h > 0.0 {
+                    if self.cur.kind == LayerKind::Layer && self.cur.height_tag.is_none() {
+                        self.cur.height_tag = Some(h);
+                    }
+                    self.height_tag = Some(h);
+                }
+            }
+            Tag::Role(role, _) => {
+                self.cura_bridge = false;
+                self.set_role(Some(role.unwrap_or(Role::Unknown)));
+            }
+            Tag::CuraBridge => {
+                self.cura_bridge = true;
+                self.close_path();
+            }
+            Tag::Width(w) => {
+                if w > 0.0 && w < 50.0 {
+                    self.width_tag = Some(w);
+                }
+            }
+            Tag::Tool { height, width } => {
+                if width > 0.0 && width < 50.0 {
+                    self.width_tag = Some(width);
+                }
+                if height > 0.0 {
+                    self.height_tag = Some(height);
+                }
+            }
+            Tag::ObjectStart(name) => self.start_object(name.clone(), name),
+            Tag::ObjectEnd => self.set_object(None),
+            Tag::ConfigBegin => self.in_config = true,
+            Tag::ConfigEnd | Tag::WipeStart | Tag::WipeEnd => {}
+        }
+    }
+
+    fn stated_filament(&mut self, text: &str) {
+        let t = text.trim();
+        if let Some(v) = t.strip_prefix("filament used [mm] =") {
+            self.facts.stated_filament_mm = v
+                .split(',')
+                .map(|x| x.trim().parse::<f64>().ok())
+                .sum::<Option<f64>>()
+                .or(self.facts.stated_filament_mm);
+        } else if let Some(v) = t.strip_prefix("Filament used:") {
+            // Cura: metres, per extruder.
+            self.facts.stated_filament_mm = v
+                .split(',')
+                .map(|x| x.trim().trim_end_matches('m').parse::<f64>().ok())
+                .sum::<Option<f64>>()
+                .map(|m| m * 1000.0);
+        }
+    }
+
+    fn set_role(&mut self, role: Option<Role>) {
+        if role != self.role_tag {
+            self.close_path();
+            self.role_tag = role;
+        }
+    }
+
+    /// Selects the object known by `key`, registering it under `name` the first time.
+    fn start_object(&mut self, key: String, name: String) {
+        let idx = match self.object_keys.iter().position(|o| *o == key) {
+            Some(i) => i,
+            None => {
+                self.object_keys.push(key);
+                self.objects.push(name);
+                self.objects.len() - 1
+            }
+        };
+        self.set_object(Some(idx as u32));
+    }
+
+    fn set_object(&mut self, object: Option<u32>) {
+        if object != self.object {
+            self.close_path();
+            self.object = object;
+        }
+    }
+
+    fn handle_extended(&mut self, name: &[u8], params: &[u8]) {
+        let object_name = || {
+            let p = String::from_utf8_lossy(params);
+            p.split_whitespace().find_map(|kv| {
+                kv.strip_prefix("NAME=")
+                    .map(|s| s.trim_matches('"').to_string())
+            })
+        };
+        match name {
+            b"EXCLUDE_OBJECT_START" => {
+                if let Some(n) = object_name() {
+                    self.start_object(n.clone(), n);
+                }
+            }
+            b"EXCLUDE_OBJECT_END" => self.set_object(None),
+            _ => {}
+        }
+    }
+
+    fn handle_m486(&mut self, parsed: &crate::gcode::Parsed<'_>, content: &[u8]) {
+        if let Some(s) = parsed.get(b'S') {
+            if s < 0.0 {
+                self.set_object(None);
+            } else {
+                let id = s as i64;
+                self.start_object(format!("M486 {id}"), format!("id {id}"));
+            }
+        } else if let Some(pos) = content.windows(2).position(|w| w == b" A") {
+            // `M486 A<name>` names the object selected by the last `M486 S`.
+            let name = String::from_utf8_lossy(&content[pos + 2..])
+                .trim()
+                .to_string();
+            if let Some(i) = self.object {
+                let id = &self.object_keys[i as usize]["M486 ".len()..];
+                self.objects[i as usize] = format!("{name} (id {id})");
+            }
+        }
+    }
+
+    fn marker(&mut self, kind: MarkerKind, n: Option<i64>, z: Option<f64>, line: u64) {
+        match (self.facts.layer_source, self.marker_kind) {
+            (LayerSource::Markers, Some(k)) if k != kind => return,
+            (LayerSource::InferredFromZ, _) => {
+                self.diagnostics.add("late-marker", line, || {
+                    format!("line {line}: layer marker after layers were inferred from Z; ignored")
+                });
+                return;
+            }
+            (LayerSource::Undecided, _) => {
+                // Everything inferred so far came before the first marker: it is preamble.
+                self.facts.layer_source = LayerSource::Markers;
+                self.marker_kind = Some(kind);
+                self.cur.kind = LayerKind::Preamble;
+                self.close_path();
+                let cur = std::mem::replace(&mut self.cur, Builder::new(LayerKind::Layer, line));
+                let last = self.complete(cur);
+                let mut blocks = self.held.drain(..).chain(std::iter::once(last));
+                if let Some(mut pre) = blocks.next() {
+                    for l in blocks {
+                        pre.raw.extend_from_slice(&l.raw);
+                        pre.paths.extend(l.paths);
+                        pre.last_line = l.last_line;
+                    }
+                    pre.kind = LayerKind::Preamble;
+                    pre.index = 0;
+                    pre.marker_number = None;
+                    pre.height = 0.0;
+                    pre.z = 0.0;
+                    for p in &mut pre.paths {
+                        if p.role == Role::Unknown {
+                            p.role = Role::WipePrime;
+                        }
+                    }
+                    self.ready.push_back(pre);
+                }
+                self.next_index = 0;
+                self.prev_layer_z = 0.0;
+                self.last_height = 0.0;
+            }
+            _ => self.finish_current(line),
+        }
+        self.cur.kind = LayerKind::Layer;
+        self.cur.marker_number = n;
+        self.cur.z_tag = z;
+    }
+
+    fn handle_move(&mut self, m: &Move, line: u64) {
+        if !m.is_extrusion() {
+            let moved = m.from != m.to;
+            if moved || m.e != 0.0 {
+                self.close_path();
+            }
+            if (m.to[2] - m.from[2]).abs() > 1e-9 && self.z_change.is_none() {
+                self.z_change = Some((self.cur.raw.len(), line));
+            }
+            return;
+        }
+        let z = m.to[2];
+        let spiral = (m.to[2] - m.from[2]).abs() > 1e-9;
+        if spiral && !self.facts.spiral_vase {
+            self.facts.spiral_vase = true;
+            self.diagnostics.add("spiral", line, || {
+                format!("line {line}: Z rises while extruding: spiral vase (or a non-planar) print")
+            });
+        }
+        if self.facts.layer_source != LayerSource::Markers {
+            self.infer_layer(z, spiral, line);
+        }
+        if self.cur.extrusion_z.is_none() {
+            self.cur.extrusion_z = Some(z);
+        }
+        self.z_change = None;
+        self.extend_path(m, line);
+    }
+
+    /// Z inference: a new layer starts where the first Z change after the previous
+    /// extrusion happened, when material is laid at a different Z.
+    fn infer_layer(&mut self, z: f64, spiral: bool, line: u64) {
+        let new_layer = match (self.cur.kind, self.cur.extrusion_z) {
+            (LayerKind::Preamble, _) | (_, None) => true,
+            (LayerKind::Layer, Some(lz)) => {
+                if spiral {
+                    let step = if self.last_height > 0.0 {
+                        self.last_height
+                    } else {
+                        self.config_layer_height.unwrap_or(0.2)
+                    };
+                    z - lz >= step * 0.999 || z < lz - Z_EPS
+                } else {
+                    (z - lz).abs() > Z_EPS
+                }
+            }
+        };
+        if !new_layer {
+            return;
+        }
+        if self.cur.kind == LayerKind::Layer && self.cur.extrusion_z.is_none() {
+            // A layer with no extrusion yet (only a Z move): keep filling it.
+            return;
+        }
+        self.close_path();
+        let (offset, first_line) = self.z_change.unwrap_or((self.cur.raw.len(), line));
+        let tail = if self.keep_raw {
+            self.cur.raw.split_off(offset.min(self.cur.raw.len()))
+        } else {
+            Vec::new()
+        };
+        let old_last = self.cur.last_line;
+        self.cur.last_line = first_line.saturating_sub(1);
+        self.finish_current(first_line);
+        self.cur.kind = LayerKind::Layer;
+        self.cur.raw = tail;
+        self.cur.last_line = old_last;
+    }
+
+    fn extend_path(&mut self, m: &Move, line: u64) {
+        let role = if self.cura_bridge {
+            Role::BridgeInfill
+        } else {
+            match (self.role_tag, self.cur.kind) {
+                (Some(r), _) => r,
+                (None, LayerKind::Preamble) => Role::WipePrime,
+                (None, LayerKind::Layer) => Role::Unknown,
+            }
+        };
+        let width = self.width_tag.unwrap_or(0.0);
+        let height = self.height_tag.unwrap_or(0.0);
+        let start = [m.from[0], m.from[1]];
+        if let Some(p) = &self.open_path {
+            let last = p.points[p.points.len() - 1];
+            let same = p.role == role
+                && p.width == width
+                && p.height == height
+                && p.object == self.object
+                && p.tool == self.machine.tool
+                && (last[0] - start[0]).abs() < 1e-6
+                && (last[1] - start[1]).abs() < 1e-6
+                && (p.z - m.to[2]).abs() < Z_EPS;
+            if !same {
+                self.close_path();
+            }
+        }
+        let path = self.open_path.get_or_insert_with(|| Path {
+            role,
+            width,
+            height,
+            z: m.to[2],
+            object: self.object,
+            tool: self.machine.tool,
+            points: vec![start],
+            seg_line: Vec::new(),
+            seg_e: Vec::new(),
+            feed: m.feed,
+        });
+        let pts = m.points(ARC_TOLERANCE);
+        let total_len = m.xy_length();
+        let mut prev = pts[0];
+        for p in &pts[1..] {
+            let seg = (p[0] - prev[0]).hypot(p[1] - prev[1]);
+            let e = if total_len > 0.0 {
+                m.e * seg / total_len
+            } else {
+                0.0
+            };
+            path.points.push(*p);
+            path.seg_line.push(line);
+            path.seg_e.push(e);
+            prev = *p;
+        }
+    }
+
+    fn close_path(&mut self) {
+        if let Some(p) = self.open_path.take() {
+            self.cur.paths.push(p);
+        }
+    }
+
+    /// Ends the current block and starts a new, empty one at `next_first_line`.
+    fn finish_current(&mut self, next_first_line: u64) {
+        self.close_path();
+        let kind = self.cur.kind;
+        let b = std::mem::replace(&mut self.cur, Builder::new(kind, next_first_line));
+        let layer = self.complete(b);
+        match self.facts.layer_source {
+            LayerSource::Undecided => {
+                let is_layer = layer.kind == LayerKind::Layer;
+                self.held.push(layer);
+                if !is_layer {
+                    return;
+                }
+                let limit = if self.markers_promised {
+                    HOLD_LAYERS_PROMISED
+                } else {
+                    HOLD_LAYERS
+                };
+                if self.held.len() > limit {
+                    self.settle_inferred();
+                }
+            }
+            _ => self.ready.push_back(layer),
+        }
+    }
+
+    fn settle_inferred(&mut self) {
+        if self.markers_promised {
+            self.diagnostics.add("no-markers", self.facts.lines, || {
+                format!(
+                    "{} header but no layer markers: layers inferred from Z",
+                    self.facts.slicer.name()
+                )
+            });
+        } else {
+            self.diagnostics.add("no-markers", self.facts.lines, || {
+                "no layer comments: layers inferred from Z".to_string()
+            });
+        }
+        self.facts.layer_source = LayerSource::InferredFromZ;
+        self.ready.extend(self.held.drain(..));
+    }
+
+    fn complete(&mut self, b: Builder) -> Layer {
+        let is_layer = b.kind == LayerKind::Layer;
+        let z = b
+            .z_tag
+            .or(b.extrusion_z)
+            .unwrap_or(if is_layer { self.prev_layer_z } else { 0.0 });
+        let height = if !is_layer {
+            0.0
+        } else if let Some(h) = b.height_tag {
+            h
+        } else if z - self.prev_layer_z > Z_EPS {
+            z - self.prev_layer_z
+        } else {
+            self.config_layer_height.unwrap_or(z.max(0.0))
+        };
+        let mut paths = b.paths;
+        for p in &mut paths {
+            if p.height <= 0.0 {
+                p.height = if height > 0.0 {
+                    height
+                } else {
+                    self.config_layer_height.unwrap_or(0.2)
+                };
+            }
+            if p.width <= 0.0 {
+                p.width = p.e_width(self.filament_area);
+            }
+        }
+        let index = self.next_index;
+        if is_layer {
+            self.next_index += 1;
+            self.prev_layer_z = z;
+            self.last_height = height;
+        }
+        Layer {
+            kind: b.kind,
+            index: if is_layer { index } else { 0 },
+            marker_number: b.marker_number,
+            z,
+            height,
+            paths,
+            first_line: b.first_line,
+            last_line: b.last_line,
+            raw: b.raw,
+        }
+    }
+
+    fn finish_input(&mut self) {
+        let next = self.cur.last_line.wrapping_add(1);
+        if self.cur.last_line.wrapping_add(1) != self.cur.first_line
+            || self.cur.kind == LayerKind::Layer
+        {
+            self.finish_current(next);
+        }
+        if self.facts.layer_source == LayerSource::Undecided {
+            if self.held.is_empty() {
+                self.facts.layer_source = LayerSource::InferredFromZ;
+            } else {
+                self.settle_inferred();
+            }
+        }
+    }
+}
+
+impl<R: BufRead> Iterator for LayerReader<R> {
+    type Item = io::Result<Layer>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        loop {
+            if let Some(l) = self.ready.pop_front() {
+                return Some(Ok(l));
+            }
+            if self.done {
+                return None;
+            }
+            let mut buf = std::mem::take(&mut self.buf);
+            let read = self.lines.read_into(&mut buf);
+            self.buf = buf;
+            match read {
+                Ok(Some(number)) => self.handle_line(number),
+                Ok(None) => {
+                    self.done = true;
+                    self.finish_input();
+                }
+                Err(e) => {
+                    self.done = true;
+                    return Some(Err(e));
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn read(src: &str, keep_raw: bool) -> (Vec<Layer>, FileFacts) {
+        let mut r = LayerReader::new(
+            src.as_bytes(),
+            ReaderOptions {
+                keep_raw,
+                ..Default::default()
+            },
+        );
+        let layers: Vec<Layer> = r.by_ref().map(|l| l.unwrap()).collect();
+        (layers, r.facts().clone())
+    }
+
+    fn layers_only(v: &[Layer]) -> Vec<&Layer> {
+        v.iter().filter(|l| l.kind == LayerKind::Layer).collect()
+    }
+
+    const PRUSA: &str = "; generated by PrusaSlicer 2.5.0 on x\nG90\nM83\nG1 Z0.2\n\
+G1 X0 Y0\nG1 X60 E9 ; intro line\n;LAYER_CHANGE\n;Z:0.2\n;HEIGHT:0.2\n;TYPE:External perimeter\n\
+;WIDTH:0.45\nG1 X10 Y0\nG1 X20 Y0 E0.5\nG1 X20 Y10 E0.5\n;TYPE:Internal infill\nG1 X10 Y10 E0.5\n\
+;LAYER_CHANGE\n;Z:0.4\n;HEIGHT:0.2\nG1 Z0.4\n;TYPE:External perimeter\nG1 X10 Y0 E0.5\nM107\n";
+
+    #[test]
+    fn prusa_markers_roles_widths() {
+        let (layers, facts) = read(PRUSA, true);
+        assert_eq!(facts.slicer, Slicer::PrusaSlicer);
+        assert_eq!(facts.layer_source, LayerSource::Markers);
+        let ls = layers_only(&layers);
+        assert_eq!(ls.len(), 2);
+        assert_eq!(ls[0].z, 0.2);
+        assert_eq!(ls[1].z, 0.4);
+        assert_eq!(ls[0].paths.len(), 2);
+        assert_eq!(ls[0].paths[0].role, Role::ExternalPerimeter);
+        assert_eq!(ls[0].paths[0].width, 0.45);
+        assert_eq!(ls[0].paths[0].points.len(), 3);
+        assert_eq!(ls[0].paths[1].role, Role::Infill);
+        assert_eq!(layers[0].kind, LayerKind::Preamble);
+        assert_eq!(layers[0].paths[0].role, Role::WipePrime);
+        let raw: Vec<u8> = layers.iter().flat_map(|l| l.raw.clone()).collect();
+        assert_eq!(raw, PRUSA.as_bytes());
+    }
+
+    #[test]
+    fn stripped_comments_infer_same_layers() {
+        let stripped: String = PRUSA
+            .lines()
+            .map(|l| l.split(';').next().unwrap().trim_end())
+            .filter(|l| !l.is_empty())
+            .map(|l| format!("{l}\n"))
+            .collect();
+        let (layers, facts) = read(&stripped, true);
+        assert_eq!(facts.layer_source, LayerSource::InferredFromZ);
+        let ls = layers_only(&layers);
+        assert_eq!(ls.len(), 2);
+        assert!((ls[1].z - 0.4).abs() < 1e-9);
+        let raw: Vec<u8> = layers.iter().flat_map(|l| l.raw.clone()).collect();
+        assert_eq!(raw, stripped.as_bytes());
+        // Width from E by the flow model: 0.5 mm of 1.75 filament over 10 mm at h = 0.2.
+        let w = ls[1].paths[0].width;
+        let expected =
+            0.5 * filament_area(1.75) / 10.0 / 0.2 + 0.2 * (1.0 - std::f64::consts::FRAC_PI_4);
+        assert!((w - expected).abs() < 1e-9);
+    }
+
+    #[test]
+    fn z_hops_do_not_start_layers() {
+        let src = "M83\nG1 Z0.2\nG1 X10 E1\nG1 Z0.6\nG1 X20 Y20\nG1 Z0.2\nG1 X30 E1\nG1 Z0.4\nG1 X40 E1\n";
+        let (layers, _) = read(src, true);
+        let ls = layers_only(&layers);
+        assert_eq!(ls.len(), 2);
+        assert_eq!(ls[0].paths.len(), 2);
+        // The second layer starts at its Z move.
+        assert_eq!(ls[1].first_line, 8);
+    }
+
+    #[test]
+    fn cura_marker_after_z_move_and_mesh_labels() {
+        let src = ";FLAVOR:Marlin\n;Generated with Cura_SteamEngine 4.13.0\nM82\n;LAYER:0\n;MESH:cube.stl\n\
+G0 Z0.2\n;TYPE:WALL-OUTER\nG1 X10 E1\nG0 Z0.4\n;LAYER:1\n;TYPE:SKIN\nG1 X0 E2\n;BRIDGE\nG1 X-10 E3\n";
+        let (layers, facts) = read(src, false);
+        assert_eq!(facts.slicer, Slicer::Cura);
+        let ls = layers_only(&layers);
+        assert_eq!(ls.len(), 2);
+        assert_eq!(ls[1].marker_number, Some(1));
+        assert!((ls[1].z - 0.4).abs() < 1e-9);
+        assert_eq!(ls[0].paths[0].role, Role::ExternalPerimeter);
+        assert_eq!(ls[0].paths[0].object, Some(0));
+        assert_eq!(ls[1].paths[0].role, Role::SolidInfill);
+        assert_eq!(ls[1].paths[1].role, Role::BridgeInfill);
+    }
+
+    #[test]
+    fn spiral_vase_is_one_layer_per_height() {
+        let mut src = String::from("M83\nG1 Z0.2\nG1 X10 E1\n");
+        // Ten revolutions, each rising 0.2 mm over four moves.
+        let mut z = 0.2;
+        for _ in 0..10 {
+            for (x, y) in [(10.0, 10.0), (0.0, 10.0), (0.0, 0.0), (10.0, 0.0)] {
+                z += 0.05;
+                src.push_str(&format!("G1 X{x} Y{y} Z{z:.3} E0.3\n"));
+            }
+        }
+        let (layers, facts) = read(&src, false);
+        assert!(facts.spiral_vase);
+        let n = layers_only(&layers).len();
+        assert!((10..=12).contains(&n), "{n}");
+    }
+
+    #[test]
+    fn klipper_and_m486_objects() {
+        let src = "M83\nEXCLUDE_OBJECT_START NAME=part_1\nG1 Z0.2\nG1 X10 E1\nEXCLUDE_OBJECT_END NAME=part_1\n\
+M486 S3\nM486 Abox\nG1 X20 E1\nM486 S-1\n";
+        let mut r = LayerReader::new(src.as_bytes(), ReaderOptions::default());
+        let layers: Vec<Layer> = r.by_ref().map(|l| l.unwrap()).collect();
+        let ls = layers_only(&layers);
+        assert_eq!(
+            r.objects,
+            vec!["part_1".to_string(), "box (id 3)".to_string()]
+        );
+        assert_eq!(ls[0].paths[0].object, Some(0));
+        assert_eq!(ls[0].paths[1].object, Some(1));
+    }
+
+    #[test]
+    fn empty_and_garbage_input() {
+        let (layers, _) = read("", true);
+        assert!(layers_only(&layers).is_empty());
+        let (layers, _) = read("\u{1}\u{2}garbage\nG1 X\n;;;\n", true);
+        assert!(layers_only(&layers).is_empty());
+        let raw: Vec<u8> = layers.iter().flat_map(|l| l.raw.clone()).collect();
+        assert_eq!(raw, "\u{1}\u{2}garbage\nG1 X\n;;;\n".as_bytes());
+    }
+
+    #[test]
+    fn relative_e_from_config_without_m83() {
+        let mut cfg = SlicerConfig::default();
+        cfg.apply_env([("SLIC3R_USE_RELATIVE_E_DISTANCES".into(), "1".into())]);
+        let src = "G1 Z0.2\nG1 X10 E1\nG1 X20 E1\n";
+        let mut r = LayerReader::new(
+            src.as_bytes(),
+            ReaderOptions {
+                keep_raw: false,
+                config: cfg,
+            },
+        );
+        let layers: Vec<Layer> = r.by_ref().map(|l| l.unwrap()).collect();
+        let e: f64 = layers.iter().flat_map(|l| &l.paths).map(|p| p.e()).sum();
+        assert!((e - 2.0).abs() < 1e-9);
+    }
+}

@@ -1,0 +1,15 @@
+//! poa: a slicer post-processor that prints overhangs on air.
+//!
+//! The library is a pipeline of stages, each its own module, dependencies pointing one way:
+//! [`gcode`] (lossless syntax) -> [`machine`] (modal state, absolute moves) -> [`layers`]
+//! (dialects, layer model) -> [`report`] (what a user reads). The binary `poa` only parses
+//! arguments, does file I/O and maps errors to exit codes.
+
+pub mod error;
+pub mod gcode;
+pub mod input;
+pub mod layers;
+pub mod machine;
+pub mod report;
+
+pub use error::Error;

@@ -1,0 +1,586 @@
+//! Stage 2: one interpreter of the printer's modal state.
+//!
+//! Input: parsed lines from [`crate::gcode`] in file order. Output: one [`Action`] per line,
+//! with moves in absolute millimetre coordinates (start and end XYZ, E delta in mm of filament,
+//! feedrate in mm/min) and the source line number.
+//!
+//! Invariants: every mode that changes what a number means (G90/G91, M82/M83, G92, G20/G21,
+//! modal F, firmware retraction) is handled here and nowhere else. The interpreter never fails:
+//! what it cannot interpret becomes a [`Diagnostic`] and the line is treated as having no effect.
+//!
+//! Relative-extrusion rule: E is relative when M83 is in force or when G91 is in force (Marlin,
+//! Prusa firmware and Klipper all make E relative under G91); G90 restores the M82/M83 choice.
+
+use std::collections::BTreeMap;
+
+use crate::gcode::{Command, Parsed};
+
+/// Coordinates beyond this (mm) are treated as corrupt: no printer is this large.
+const MAX_COORD_MM: f64 = 100_000.0;
+
+pub type Vec3 = [f64; 3];
+
+/// A circular arc's geometry (G2/G3), in absolute XY.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Arc {
+    pub center: [f64; 2],
+    pub clockwise: bool,
+}
+
+/// A motion from `from` to `to`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Move {
+    pub line: u64,
+    pub from: Vec3,
+    pub to: Vec3,
+    /// Filament pushed (mm); negative for a retraction.
+    pub e: f64,
+    /// Feedrate in force for this move, mm/min.
+    pub feed: f64,
+    pub arc: Option<Arc>,
+    /// Written as G0.
+    pub rapid: bool,
+}
+
+impl Move {
+    pub fn xy_length(&self) -> f64 {
+        match self.arc {
+            None => (self.to[0] - self.from[0]).hypot(self.to[1] - self.from[1]),
+            Some(arc) => {
+                let (r, sweep) = arc_sweep(self.from, self.to, arc);
+                r * sweep.abs()
+            }
+        }
+    }
+
+    /// XY movement with material pushed: what prints a strand.
+    pub fn is_extrusion(&self) -> bool {
+        self.e > 0.0 && self.xy_length() > 1e-9
+    }
+
+    /// The XY polyline of the move, starting at `from` and ending at `to`. Arcs are
+    /// linearized so that no chord strays more than `tolerance` mm from the arc.
+    pub fn points(&self, tolerance: f64) -> Vec<[f64; 2]> {
+        let start = [self.from[0], self.from[1]];
+        let end = [self.to[0], self.to[1]];
+        let Some(arc) = self.arc else {
+            return vec![start, end];
+        };
+        let (r, sweep) = arc_sweep(self.from, self.to, arc);
+        if r < 1e-9 {
+            return vec![start, end];
+        }
+        let tol = tolerance.max(1e-4).min(r);
+        let max_step = 2.0 * (1.0 - tol / r).clamp(-1.0, 1.0).acos();
+        let n = ((sweep.abs() / max_step.max(1e-3)).ceil() as usize).clamp(1, 10_000);
+        let a0 = (start[1] - arc.center[1]).atan2(start[0] - arc.center[0]);
+        let mut pts = Vec::with_capacity(n + 1);
+        pts.push(start);
+        for i in 1..n {
+            let a = a0 + sweep * (i as f64) / (n as f64);
+            pts.push([arc.center[0] + r * a.cos(), arc.center[1] + r * a.sin()]);
+        }
+        pts.push(end);
+        pts
+    }
+}
+
+/// Radius and signed sweep angle (counter-clockwise positive) of an arc move.
+fn arc_sweep(from: Vec3, to: Vec3, arc: Arc) -> (f64, f64) {
+    let (cx, cy) = (arc.center[0], arc.center[1]);
+    let r = (from[0] - cx).hypot(from[1] - cy);
+    let a0 = (from[1] - cy).atan2(from[0] - cx);
+    let a1 = (to[1] - cy).atan2(to[0] - cx);
+    let mut sweep = a1 - a0;
+    let full = (from[0] - to[0]).abs() < 1e-9 && (from[1] - to[1]).abs() < 1e-9;
+    if arc.clockwise {
+        if sweep >= 0.0 {
+            sweep -= std::f64::consts::TAU;
+        }
+        if full {
+            sweep = -std::f64::consts::TAU;
+        }
+    } else {
+        if sweep <= 0.0 {
+            sweep += std::f64::consts::TAU;
+        }
+        if full {
+            sweep = std::f64::consts::TAU;
+        }
+    }
+    (r, sweep)
+}
+
+/// What one line does to the machine.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Action {
+    None,
+    Move(Move),
+    /// G10 without parameters: firmware retraction.
+    FirmwareRetract,
+    /// G11: firmware unretraction.
+    FirmwareUnretract,
+    /// Part-cooling fan, 0..=1.
+    Fan(f64),
+    Tool(u32),
+    /// G92 or G28 changed the coordinate frame.
+    SetPosition,
+}
+
+/// Something worth telling the user; not an error.
+#[derive(Debug, Clone, PartialEq, Eq, PartialOrd, Ord)]
+pub struct Diagnostic {
+    /// First line where it was seen.
+    pub line: u64,
+    pub message: String,
+}
+
+/// Distinct diagnostics with the line of their first occurrence and how often they occurred.
+#[derive(Debug, Default, Clone)]
+pub struct Diagnostics {
+    entries: BTreeMap<&'static str, (u64, String, u64)>,
+}
+
+impl Diagnostics {
+    pub fn add(&mut self, code: &'static str, line: u64, message: impl FnOnce() -> String) {
+        self.entries
+            .entry(code)
+            .and_modify(|e| e.2 += 1)
+            .or_insert_with(|| (line, message(), 1));
+    }
+
+    pub fn has(&self, code: &str) -> bool {
+        self.entries.contains_key(code)
+    }
+
+    /// Human-readable list sorted by first line.
+    pub fn list(&self) -> Vec<(u64, String, u64)> {
+        let mut v: Vec<_> = self.entries.values().cloned().collect();
+        v.sort();
+        v
+    }
+
+    pub fn merge(&mut self, other: &Diagnostics) {
+        for (k, v) in &other.entries {
+            self.entries
+                .entry(k)
+                .and_modify(|e| e.2 += v.2)
+                .or_insert_with(|| v.clone());
+        }
+    }
+}
+
+/// Which E modes appeared in the file.
+#[derive(Debug, Default, Clone, Copy, PartialEq, Eq)]
+pub struct EModes {
+    pub absolute: bool,
+    pub relative: bool,
+}
+
+/// The modal interpreter.
+#[derive(Debug, Clone)]
+pub struct Machine {
+    /// Physical position (mm).
+    pos: Vec3,
+    /// Logical E position as the file counts it (for absolute E).
+    e_logical: f64,
+    /// physical = logical + offset, per axis (set by G92).
+    offset: Vec3,
+    xyz_relative: bool,
+    g91: bool,
+    m83: bool,
+    /// mm per file unit: 1 (G21) or 25.4 (G20).
+    unit: f64,
+    feed: f64,
+    pub fan: f64,
+    pub tool: u32,
+    pub e_modes: EModes,
+    pub diagnostics: Diagnostics,
+    /// Seen G20 at least once.
+    pub inches_seen: bool,
+}
+
+impl Default for Machine {
+    fn default() -> Self {
+        Machine {
+            pos: [0.0; 3],
+            e_logical: 0.0,
+            offset: [0.0; 3],
+            xyz_relative: false,
+            g91: false,
+            m83: false,
+            unit: 1.0,
+            feed: 1500.0,
+            fan: 0.0,
+            tool: 0,
+            e_modes: EModes::default(),
+            diagnostics: Diagnostics::default(),
+            inches_seen: false,
+        }
+    }
+}
+
+impl Machine {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    pub fn position(&self) -> Vec3 {
+        self.pos
+    }
+
+    pub fn feedrate(&self) -> f64 {
+        self.feed
+    }
+
+    pub fn e_relative(&self) -> bool {
+        self.m83 || self.g91
+    }
+
+    /// The file's own E counter (what an absolute-E file would write next).
+    pub fn e_logical(&self) -> f64 {
+        self.e_logical
+    }
+
+    pub fn xyz_relative(&self) -> bool {
+        self.xyz_relative
+    }
+
+    /// Interprets one parsed line.
+    pub fn step(&mut self, p: &Parsed<'_>, line: u64) -> Action {
+        let (letter, code) = match p.command {
+            // Sub-codes such as `G29.1` are not motion or mode commands we interpret.
+            Command::Code { letter, number }
+                if (0.0..10_000.0).contains(&number) && number.fract() == 0.0 =>
+            {
+                (letter, number as u32)
+            }
+            _ => return Action::None,
+        };
+        match (letter, code) {
+            (b'G', n @ (0 | 1)) => self.linear(p, line, n == 0),
+            (b'G', n @ (2 | 3)) => self.arc(p, line, n == 2),
+            (b'G', 10) => {
+                // G10 with P/L is a tool-offset or temperature command (RepRapFirmware, CNC).
+                if p.has(b'P') || p.has(b'L') {
+                    Action::None
+                } else {
+                    Action::FirmwareRetract
+                }
+            }
+            (b'G', 11) => Action::FirmwareUnretract,
+            (b'G', 20) => {
+                self.unit = 25.4;
+                self.inches_seen = true;
+                self.diagnostics.add("inches", line, || {
+                    "G20: file uses inches; converted to mm".to_string()
+                });
+                Action::None
+            }
+            (b'G', 21) => {
+                self.unit = 1.0;
+                Action::None
+            }
+            (b'G', 28) => {
+                let all = !(p.has(b'X') || p.has(b'Y') || p.has(b'Z'));
+                for (i, l) in [b'X', b'Y', b'Z'].into_iter().enumerate() {
+                    if all || p.has(l) {
+                        self.pos[i] = 0.0;
+                        self.offset[i] = 0.0;
+                    }
+                }
+                Action::SetPosition
+            }
+            (b'G', 90) => {
+                self.xyz_relative = false;
+                self.g91 = false;
+                Action::None
+            }
+            (b'G', 91) => {
+                self.xyz_relative = true;
+                self.g91 = true;
+                self.diagnostics.add("g91", line, || {
+                    "G91: relative XYZ; E is relative too while G91 is in force (Marlin rule)"
+                        .to_string()
+                });
+                Action::None
+            }
+            (b'G', 92) => {
+                let none = p.words.is_empty();
+                for (i, l) in [b'X', b'Y', b'Z'].into_iter().enumerate() {
+                    if let Some(v) = self.word(p, l, line) {
+                        self.offset[i] = self.pos[i] - v * self.unit;
+                    } else if none {
+                        self.offset[i] = self.pos[i];
+                    }
+                }
+                if let Some(v) = self.word(p, b'E', line) {
+                    self.e_logical = v * self.unit;
+                } else if none {
+                    self.e_logical = 0.0;
+                }
+                Action::SetPosition
+            }
+            (b'M', 82) => {
+                self.m83 = false;
+                self.e_modes.absolute = true;
+                Action::None
+            }
+            (b'M', 83) => {
+                self.m83 = true;
+                self.e_modes.relative = true;
+                Action::None
+            }
+            (b'M', 106) => {
+                let s = self.word(p, b'S', line).unwrap_or(255.0);
+                self.fan = (s / 255.0).clamp(0.0, 1.0);
+                Action::Fan(self.fan)
+            }
+            (b'M', 107) => {
+                self.fan = 0.0;
+                Action::Fan(0.0)
+            }
+            (b'T', n) => {
+                self.tool = n;
+                Action::Tool(self.tool)
+            }
+            _ => Action::None,
+        }
+    }
+
+    /// A finite, sane parameter value, or `None` with a diagnostic.
+    fn word(&mut self, p: &Parsed<'_>, letter: u8, line: u64) -> Option<f64> {
+        let v = p.get(letter)?;
+        if v.is_finite() && v.abs() * self.unit <= MAX_COORD_MM {
+            Some(v)
+        } else {
+            self.diagnostics.add("bad-number", line, || {
+                format!(
+                    "line {line}: {}{v} is not a usable number; the word was ignored",
+                    letter as char
+                )
+            });
+            None
+        }
+    }
+
+    /// Resolves the target of X/Y/Z/E words; returns (target xyz, e delta).
+    fn target(&mut self, p: &Parsed<'_>, line: u64) -> (Vec3, f64) {
+        let mut to = self.pos;
+        for (i, l) in [b'X', b'Y', b'Z'].into_iter().enumerate() {
+            if let Some(v) = self.word(p, l, line) {
+                let v = v * self.unit;
+                to[i] = if self.xyz_relative {
+                    self.pos[i] + v
+                } else {
+                    v + self.offset[i]
+                };
+            }
+        }
+        let mut e = 0.0;
+        if let Some(v) = self.word(p, b'E', line) {
+            let v = v * self.unit;
+            if self.e_relative() {
+                e = v;
+                self.e_logical += v;
+            } else {
+                e = v - self.e_logical;
+                self.e_logical = v;
+            }
+        }
+        if let Some(f) = self.word(p, b'F', line) {
+            if f > 0.0 {
+                self.feed = f * self.unit;
+            }
+        }
+        (to, e)
+    }
+
+    fn linear(&mut self, p: &Parsed<'_>, line: u64, rapid: bool) -> Action {
+        let from = self.pos;
+        let (to, e) = self.target(p, line);
+        self.pos = to;
+        Action::Move(Move {
+            line,
+            from,
+            to,
+            e,
+            feed: self.feed,
+            arc: None,
+            rapid,
+        })
+    }
+
+    fn arc(&mut self, p: &Parsed<'_>, line: u64, clockwise: bool) -> Action {
+        let from = self.pos;
+        let i = self.word(p, b'I', line);
+        let j = self.word(p, b'J', line);
+        let r = self.word(p, b'R', line);
+        let (to, e) = self.target(p, line);
+        self.pos = to;
+        let center = if i.is_some() || j.is_some() {
+            // I/J are offsets from the start point in every firmware, whatever G90/G91 says.
+            Some([
+                from[0] + i.unwrap_or(0.0) * self.unit,
+                from[1] + j.unwrap_or(0.0) * self.unit,
+            ])
+        } else if let Some(r) = r {
+            arc_center_from_radius(from, to, r * self.unit, clockwise)
+        } else {
+            None
+        };
+        let Some(center) = center else {
+            self.diagnostics.add("bad-arc", line, || {
+                format!("line {line}: arc without a usable centre; treated as a straight move")
+            });
+            return Action::Move(Move {
+                line,
+                from,
+                to,
+                e,
+                feed: self.feed,
+                arc: None,
+                rapid: false,
+            });
+        };
+        Action::Move(Move {
+            line,
+            from,
+            to,
+            e,
+            feed: self.feed,
+            arc: Some(Arc { center, clockwise }),
+            rapid: false,
+        })
+    }
+}
+
+/// Centre of an R-form arc. A negative R asks for the arc longer than a half circle.
+fn arc_center_from_radius(from: Vec3, to: Vec3, r: f64, clockwise: bool) -> Option<[f64; 2]> {
+    let (dx, dy) = (to[0] - from[0], to[1] - from[1]);
+    let d = dx.hypot(dy);
+    if d < 1e-9 || r.abs() < d / 2.0 - 1e-6 {
+        return None;
+    }
+    let h = (r * r - d * d / 4.0).max(0.0).sqrt();
+    let (mx, my) = (from[0] + dx / 2.0, from[1] + dy / 2.0);
+    // Unit normal to the chord, on the left of the travel direction.
+    let (nx, ny) = (-dy / d, dx / d);
+    // Short arc: the centre lies right of the chord for clockwise, left for counter-clockwise.
+    let mut side = if clockwise { -1.0 } else { 1.0 };
+    if r < 0.0 {
+        side = -side;
+    }
+    Some([mx + side * h * nx, my + side * h * ny])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::gcode::parse_line;
+
+    fn run(src: &str) -> (Machine, Vec<Action>) {
+        let mut m = Machine::new();
+        let acts = src
+            .lines()
+            .enumerate()
+            .map(|(i, l)| m.step(&parse_line(l.as_bytes()), i as u64 + 1))
+            .collect();
+        (m, acts)
+    }
+
+    fn moves(acts: &[Action]) -> Vec<Move> {
+        acts.iter()
+            .filter_map(|a| match a {
+                Action::Move(m) => Some(*m),
+                _ => None,
+            })
+            .collect()
+    }
+
+    fn close(a: f64, b: f64) -> bool {
+        (a - b).abs() < 1e-9
+    }
+
+    #[test]
+    fn absolute_and_relative_e() {
+        let (_, a) = run("M82\nG1 X10 E1\nG1 X20 E3\nG92 E0\nG1 X30 E0.5\nM83\nG1 X40 E0.25");
+        let m = moves(&a);
+        let es: Vec<f64> = m.iter().map(|m| m.e).collect();
+        assert_eq!(es, vec![1.0, 2.0, 0.5, 0.25]);
+        assert!(close(m[3].from[0], 30.0) && close(m[3].to[0], 40.0));
+    }
+
+    #[test]
+    fn g91_makes_e_relative_and_g90_restores() {
+        let (m, a) = run("M82\nG1 X10 E5\nG91\nG1 X1 Y1 E0.1\nG90\nG1 X0 E5.5");
+        let mv = moves(&a);
+        assert!(close(mv[1].to[0], 11.0) && close(mv[1].to[1], 1.0));
+        assert!(close(mv[1].e, 0.1));
+        assert!(close(mv[2].e, 0.4), "{}", mv[2].e);
+        assert!(m.diagnostics.has("g91"));
+    }
+
+    #[test]
+    fn g92_shifts_frame_and_inches() {
+        let (_, a) = run("G1 X10 Y10\nG92 X0 Y0\nG1 X5\nG20\nG1 X1 E0.1\nG21");
+        let mv = moves(&a);
+        assert!(close(mv[1].to[0], 15.0));
+        assert!(close(mv[2].to[0], 10.0 + 25.4));
+        assert!(close(mv[2].e, 2.54));
+    }
+
+    #[test]
+    fn modal_feedrate() {
+        let (_, a) = run("G1 X1 F600\nG1 X2\nG0 X3 F9000");
+        let mv = moves(&a);
+        assert_eq!(mv[1].feed, 600.0);
+        assert!(mv[2].rapid);
+        assert_eq!(mv[2].feed, 9000.0);
+    }
+
+    #[test]
+    fn arcs_ij_and_r_agree() {
+        // Quarter circle of radius 10 around the origin, counter-clockwise from (10,0) to (0,10).
+        let (_, a) = run("G1 X10 Y0\nG3 X0 Y10 I-10 J0 E1\nG1 X10 Y0\nG3 X0 Y10 R10 E1");
+        let mv = moves(&a);
+        let (ij, r) = (mv[1], mv[3]);
+        assert!(close(ij.arc.unwrap().center[0], 0.0));
+        let c = r.arc.unwrap().center;
+        assert!(c[0].abs() < 1e-9 && c[1].abs() < 1e-9, "{c:?}");
+        let quarter = std::f64::consts::FRAC_PI_2 * 10.0;
+        assert!((ij.xy_length() - quarter).abs() < 1e-9);
+        let pts = ij.points(0.01);
+        for p in &pts {
+            assert!((p[0].hypot(p[1]) - 10.0).abs() < 1e-9);
+        }
+        assert!(pts.len() > 5);
+    }
+
+    #[test]
+    fn clockwise_full_circle() {
+        let (_, a) = run("G1 X10 Y0\nG2 X10 Y0 I-10 J0 E1");
+        let mv = moves(&a);
+        let len = mv[1].xy_length();
+        assert!((len - std::f64::consts::TAU * 10.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn firmware_retraction_fan_tool() {
+        let (_, a) = run("G10\nG11\nG10 P0 S200\nM106 S127.5\nM107\nT1");
+        assert_eq!(a[0], Action::FirmwareRetract);
+        assert_eq!(a[1], Action::FirmwareUnretract);
+        assert_eq!(a[2], Action::None);
+        assert_eq!(a[3], Action::Fan(0.5));
+        assert_eq!(a[4], Action::Fan(0.0));
+        assert_eq!(a[5], Action::Tool(1));
+    }
+
+    #[test]
+    fn absurd_numbers_are_ignored() {
+        let (m, a) = run("G1 X1e308 Y5\nG1 Xnan");
+        let mv = moves(&a);
+        assert_eq!(mv[0].to, [0.0, 5.0, 0.0]);
+        assert!(m.diagnostics.has("bad-number"));
+    }
+}
