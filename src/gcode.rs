@@ -12,6 +12,7 @@
 use std::io::{self, BufRead};
 
 use nom::bytes::complete::take_while;
+use smallvec::SmallVec;
 use nom::IResult;
 use nom::Parser;
 
@@ -74,8 +75,9 @@ pub struct Parsed<'a> {
     /// `N` line number, when the line carries one.
     pub line_number: Option<i64>,
     pub command: Command<'a>,
-    /// Parameter words after the command word, in file order.
-    pub words: Vec<Word>,
+    /// Parameter words after the command word, in file order. Inline storage: a line rarely
+    /// has more than eight words, and this is the hottest allocation otherwise.
+    pub words: SmallVec<[Word; 8]>,
     /// Comment text without its delimiters (`;` comment, or the last `( )` comment).
     pub comment: Option<&'a [u8]>,
     /// `*nn` checksum, when present.
@@ -167,7 +169,7 @@ pub fn split_lines(data: &[u8]) -> impl Iterator<Item = &[u8]> {
 }
 
 fn memchr_nl(s: &[u8]) -> Option<usize> {
-    s.iter().position(|&b| b == b'\n')
+    memchr::memchr(b'\n', s)
 }
 
 fn is_blank(b: u8) -> bool {
@@ -182,50 +184,51 @@ fn skip_blanks(s: &[u8]) -> &[u8] {
 /// A G-code number: optional sign, digits, optional fraction (`10`, `-.5`, `+3.`, `1e3`).
 /// Plain decimals take an exact fast path; anything else goes through the standard parser.
 pub fn number(input: &[u8]) -> IResult<&[u8], f64> {
-    let mut i = 0;
-    if i < input.len() && (input[i] == b'-' || input[i] == b'+') {
-        i += 1;
-    }
-    let mut mantissa: u64 = 0;
-    let mut digits = 0u32;
-    let mut frac_digits = 0i32;
-    let mut seen_dot = false;
-    let mut exact = true;
-    while i < input.len() {
-        let b = input[i];
-        if b.is_ascii_digit() {
-            if digits < 18 {
-                mantissa = mantissa * 10 + u64::from(b - b'0');
-                if seen_dot {
-                    frac_digits += 1;
-                }
-                if mantissa != 0 {
-                    digits += 1;
-                }
-            } else {
-                exact = false;
-            }
-            i += 1;
-        } else if b == b'.' && !seen_dot {
-            seen_dot = true;
-            i += 1;
-        } else {
-            break;
-        }
-    }
-    let start_digits = usize::from(matches!(input.first(), Some(b'-' | b'+')));
-    let body = &input[start_digits..i];
-    if body.is_empty() || body == b"." {
-        return Err(nom::Err::Error(nom::error::Error::new(
+    let fail = || {
+        Err(nom::Err::Error(nom::error::Error::new(
             input,
             nom::error::ErrorKind::Float,
-        )));
+        )))
+    };
+    let len = input.len();
+    let mut i = 0;
+    let negative = match input.first() {
+        Some(b'-') => {
+            i = 1;
+            true
+        }
+        Some(b'+') => {
+            i = 1;
+            false
+        }
+        _ => false,
+    };
+    let int_start = i;
+    let mut mantissa: u64 = 0;
+    while i < len && input[i].is_ascii_digit() {
+        mantissa = mantissa.wrapping_mul(10).wrapping_add(u64::from(input[i] - b'0'));
+        i += 1;
     }
-    // Exponent: rare in G-code but legal in some generators.
+    let int_digits = i - int_start;
+    let mut frac_digits = 0;
+    if i < len && input[i] == b'.' {
+        i += 1;
+        let frac_start = i;
+        while i < len && input[i].is_ascii_digit() {
+            mantissa = mantissa.wrapping_mul(10).wrapping_add(u64::from(input[i] - b'0'));
+            i += 1;
+        }
+        frac_digits = i - frac_start;
+    }
+    if int_digits + frac_digits == 0 {
+        return fail();
+    }
     let mut end = i;
-    if i < input.len() && (input[i] == b'e' || input[i] == b'E') {
+    let mut exact = int_digits + frac_digits <= 15;
+    // Exponent: rare in G-code but legal in some generators.
+    if i < len && (input[i] == b'e' || input[i] == b'E') {
         let mut j = i + 1;
-        if j < input.len() && (input[j] == b'-' || input[j] == b'+') {
+        if j < len && (input[j] == b'-' || input[j] == b'+') {
             j += 1;
         }
         let k = input[j..].iter().take_while(|b| b.is_ascii_digit()).count();
@@ -234,10 +237,11 @@ pub fn number(input: &[u8]) -> IResult<&[u8], f64> {
             exact = false;
         }
     }
-    let value = if exact && frac_digits <= 22 {
-        // Both operands are exact in f64, so one division is correctly rounded.
-        let v = mantissa as f64 / POW10[frac_digits as usize];
-        if input[0] == b'-' {
+    let value = if exact {
+        // With at most 15 digits both operands are exact in f64 (< 2^53), so the one division
+        // is correctly rounded: the same value `str::parse` gives.
+        let v = mantissa as f64 / POW10[frac_digits];
+        if negative {
             -v
         } else {
             v
@@ -248,12 +252,7 @@ pub fn number(input: &[u8]) -> IResult<&[u8], f64> {
             .and_then(|s| s.parse::<f64>().ok())
         {
             Some(v) => v,
-            None => {
-                return Err(nom::Err::Error(nom::error::Error::new(
-                    input,
-                    nom::error::ErrorKind::Float,
-                )))
-            }
+            None => return fail(),
         }
     };
     Ok((&input[end..], value))
@@ -266,17 +265,23 @@ const POW10: [f64; 23] = [
 
 /// A word: letter, optional blanks, number.
 fn word(input: &[u8]) -> IResult<&[u8], Word> {
-    let (rest, letter) =
-        nom::character::complete::satisfy(|c| c.is_ascii_alphabetic()).parse(input)?;
-    let (rest, _) = take_while(is_blank).parse(rest)?;
-    let (rest, value) = number(rest)?;
-    Ok((
-        rest,
-        Word {
-            letter: (letter as u8).to_ascii_uppercase(),
-            value,
-        },
-    ))
+    match input.first() {
+        Some(&c) if c.is_ascii_alphabetic() => {
+            let (rest, _) = take_while(is_blank).parse(&input[1..])?;
+            let (rest, value) = number(rest)?;
+            Ok((
+                rest,
+                Word {
+                    letter: c.to_ascii_uppercase(),
+                    value,
+                },
+            ))
+        }
+        _ => Err(nom::Err::Error(nom::error::Error::new(
+            input,
+            nom::error::ErrorKind::Alpha,
+        ))),
+    }
 }
 
 /// Marlin's checksum: XOR of every byte before the `*`.
@@ -287,7 +292,7 @@ pub fn marlin_checksum(bytes: &[u8]) -> u8 {
 /// Splits off the comment: `;` to end of line, or parenthesised comments anywhere. Returns the
 /// code part (with parenthesised comments still inside it) and the comment text.
 fn split_comment(content: &[u8]) -> (&[u8], Option<&[u8]>) {
-    match content.iter().position(|&b| b == b';') {
+    match memchr::memchr(b';', content) {
         Some(i) => (&content[..i], Some(&content[i + 1..])),
         None => (content, None),
     }
@@ -299,7 +304,7 @@ pub fn parse_line(content: &[u8]) -> Parsed<'_> {
     let mut parsed = Parsed {
         line_number: None,
         command: Command::Empty,
-        words: Vec::new(),
+        words: SmallVec::new(),
         comment: None,
         checksum: None,
         checksum_ok: None,
@@ -307,7 +312,7 @@ pub fn parse_line(content: &[u8]) -> Parsed<'_> {
 
     // Checksum: `*nn` at the end of the code part.
     let mut code = code;
-    if let Some(star) = code.iter().rposition(|&b| b == b'*') {
+    if let Some(star) = memchr::memrchr(b'*', code) {
         let tail = trim_end(&code[star + 1..]);
         if !tail.is_empty() && tail.len() <= 3 && tail.iter().all(|b| b.is_ascii_digit()) {
             if let Ok(v) = std::str::from_utf8(tail).unwrap_or("x").parse::<u16>() {

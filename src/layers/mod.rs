@@ -25,7 +25,7 @@ pub use config::SlicerConfig;
 pub use dialect::{MarkerKind, Role, Slicer, Tag};
 
 use crate::gcode::{parse_line, strip_terminator, Command, LineReader};
-use crate::machine::{Action, Diagnostics, Machine, Move};
+use crate::machine::{dist, Action, Diagnostics, Machine, Move};
 
 /// Two Z values closer than this (mm) are the same layer.
 const Z_EPS: f64 = 1e-4;
@@ -64,7 +64,7 @@ impl Path {
     pub fn length(&self) -> f64 {
         self.points
             .windows(2)
-            .map(|w| (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]))
+            .map(|w| dist(w[0][0], w[0][1], w[1][0], w[1][1]))
             .sum()
     }
 
@@ -478,8 +478,9 @@ impl<R: BufRead> LayerReader<R> {
                 .trim()
                 .to_string();
             if let Some(i) = self.object {
-                let id = &self.object_keys[i as usize]["M486 ".len()..];
-                self.objects[i as usize] = format!("{name} (id {id})");
+                if let Some(id) = self.object_keys[i as usize].strip_prefix("M486 ") {
+                    self.objects[i as usize] = format!("{name} (id {id})");
+                }
             }
         }
     }
@@ -639,11 +640,17 @@ impl<R: BufRead> LayerReader<R> {
             seg_e: Vec::new(),
             feed: m.feed,
         });
+        if m.arc.is_none() {
+            path.points.push([m.to[0], m.to[1]]);
+            path.seg_line.push(line);
+            path.seg_e.push(m.e);
+            return;
+        }
         let pts = m.points(ARC_TOLERANCE);
         let total_len = m.xy_length();
         let mut prev = pts[0];
         for p in &pts[1..] {
-            let seg = (p[0] - prev[0]).hypot(p[1] - prev[1]);
+            let seg = dist(prev[0], prev[1], p[0], p[1]);
             let e = if total_len > 0.0 {
                 m.e * seg / total_len
             } else {

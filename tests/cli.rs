@@ -1,0 +1,105 @@
+//! The `poa` binary as users and scripts call it.
+
+mod common;
+
+use std::process::{Command, Output};
+
+use common::*;
+
+fn poa(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_poa"))
+        .args(args)
+        .env_remove("SLIC3R_FILAMENT_DIAMETER")
+        .output()
+        .expect("run poa")
+}
+
+fn assert_clean_failure(out: &Output, what: &str) {
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{what}: should fail");
+    assert_ne!(out.status.code(), Some(101), "{what}: panicked: {stderr}");
+    assert!(!stderr.contains("panicked"), "{what}: {stderr}");
+    let lines = stderr.trim().lines().count();
+    assert!((1..=2).contains(&lines), "{what}: message should be one or two lines: {stderr}");
+    assert!(stderr.starts_with("poa: "), "{what}: {stderr}");
+}
+
+#[test]
+fn info_describes_a_prusaslicer_file() {
+    let f = sample("rect_overhang_prusa_rel.gcode");
+    let out = poa(&["info", f.to_str().unwrap()]);
+    assert!(out.status.success());
+    let s = String::from_utf8(out.stdout).unwrap();
+    assert!(s.contains("PrusaSlicer 2.5"), "{s}");
+    assert!(s.contains("layers      100"), "{s}");
+    assert!(s.contains("external perimeter"), "{s}");
+    assert!(s.contains("rect_overhang.stl"), "{s}");
+}
+
+#[test]
+fn info_json_is_stable() {
+    let f = sample("rect_overhang_prusa_abs.gcode");
+    let out = poa(&["info", "--json", f.to_str().unwrap()]);
+    assert!(out.status.success());
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["slicer"], "PrusaSlicer");
+    assert_eq!(v["layers"], 100);
+    assert_eq!(v["layer_source"], "markers");
+    let modes: Vec<&str> = v["e_modes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|m| m.as_str().unwrap())
+        .collect();
+    assert!(modes.contains(&"absolute"));
+    let stated = v["stated_filament_mm"].as_f64().unwrap();
+    let got = v["filament_mm"].as_f64().unwrap();
+    assert!((stated - got).abs() / stated < 0.005);
+    for key in ["roles", "objects", "diagnostics", "filament_g", "first_layer_z", "spiral_vase"] {
+        assert!(v.get(key).is_some(), "missing {key}");
+    }
+}
+
+#[test]
+fn info_notes_inferred_layers() {
+    let f = sample("rect_overhang_nocomments.gcode");
+    let out = poa(&["info", f.to_str().unwrap()]);
+    assert!(out.status.success());
+    let s = String::from_utf8(out.stdout).unwrap();
+    assert!(s.contains("no layer comments: layers inferred from Z"), "{s}");
+}
+
+#[test]
+fn bad_inputs_never_panic() {
+    let dir = tempfile::tempdir().unwrap();
+    let write = |name: &str, data: &[u8]| {
+        let p = dir.path().join(name);
+        std::fs::write(&p, data).unwrap();
+        p
+    };
+    // Readable, if odd: reported, exit 0.
+    let empty = write("empty.gcode", b"");
+    let out = poa(&["info", empty.to_str().unwrap()]);
+    assert!(out.status.success());
+    assert!(String::from_utf8_lossy(&out.stdout).contains("layers      0"));
+
+    let full = read(&sample("rect_overhang_prusa_rel.gcode"));
+    let truncated = write("truncated.gcode", &full[..full.len() / 2 + 7]);
+    let out = poa(&["info", truncated.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+
+    // Not G-code: one-line refusal.
+    let mut junk = Vec::new();
+    let mut x: u32 = 12345;
+    for _ in 0..10_000 {
+        x = x.wrapping_mul(1_103_515_245).wrapping_add(12345);
+        junk.push((x >> 16) as u8);
+    }
+    let random = write("random.gcode", &junk);
+    assert_clean_failure(&poa(&["info", random.to_str().unwrap()]), "random bytes");
+    let bgcode = write("x.bgcode", b"GCDE\x01\x00\x00\x00\x01\x00");
+    assert_clean_failure(&poa(&["info", bgcode.to_str().unwrap()]), "binary gcode");
+    assert_clean_failure(&poa(&["info", dir.path().to_str().unwrap()]), "directory");
+    let missing = dir.path().join("missing.gcode");
+    assert_clean_failure(&poa(&["info", missing.to_str().unwrap()]), "missing file");
+}
