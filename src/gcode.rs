@@ -12,9 +12,9 @@
 use std::io::{self, BufRead};
 
 use nom::bytes::complete::take_while;
-use smallvec::SmallVec;
 use nom::IResult;
 use nom::Parser;
+use smallvec::SmallVec;
 
 /// One physical line of the file, exactly as read.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -206,7 +206,9 @@ pub fn number(input: &[u8]) -> IResult<&[u8], f64> {
     let int_start = i;
     let mut mantissa: u64 = 0;
     while i < len && input[i].is_ascii_digit() {
-        mantissa = mantissa.wrapping_mul(10).wrapping_add(u64::from(input[i] - b'0'));
+        mantissa = mantissa
+            .wrapping_mul(10)
+            .wrapping_add(u64::from(input[i] - b'0'));
         i += 1;
     }
     let int_digits = i - int_start;
@@ -215,7 +217,9 @@ pub fn number(input: &[u8]) -> IResult<&[u8], f64> {
         i += 1;
         let frac_start = i;
         while i < len && input[i].is_ascii_digit() {
-            mantissa = mantissa.wrapping_mul(10).wrapping_add(u64::from(input[i] - b'0'));
+            mantissa = mantissa
+                .wrapping_mul(10)
+                .wrapping_add(u64::from(input[i] - b'0'));
             i += 1;
         }
         frac_digits = i - frac_start;

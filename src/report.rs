@@ -125,7 +125,7 @@ pub fn info<R: BufRead>(input: R, config: SlicerConfig, file: &str) -> std::io::
         filament_g: cm3 * density,
         stated_filament_mm: facts.stated_filament_mm,
         roles: roles.into_values().collect(),
-        objects: reader.objects.clone(),
+        objects: reader.objects().to_vec(),
         lines: facts.lines,
         bytes: facts.bytes,
         diagnostics: reader

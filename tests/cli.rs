@@ -20,7 +20,10 @@ fn assert_clean_failure(out: &Output, what: &str) {
     assert_ne!(out.status.code(), Some(101), "{what}: panicked: {stderr}");
     assert!(!stderr.contains("panicked"), "{what}: {stderr}");
     let lines = stderr.trim().lines().count();
-    assert!((1..=2).contains(&lines), "{what}: message should be one or two lines: {stderr}");
+    assert!(
+        (1..=2).contains(&lines),
+        "{what}: message should be one or two lines: {stderr}"
+    );
     assert!(stderr.starts_with("poa: "), "{what}: {stderr}");
 }
 
@@ -55,7 +58,14 @@ fn info_json_is_stable() {
     let stated = v["stated_filament_mm"].as_f64().unwrap();
     let got = v["filament_mm"].as_f64().unwrap();
     assert!((stated - got).abs() / stated < 0.005);
-    for key in ["roles", "objects", "diagnostics", "filament_g", "first_layer_z", "spiral_vase"] {
+    for key in [
+        "roles",
+        "objects",
+        "diagnostics",
+        "filament_g",
+        "first_layer_z",
+        "spiral_vase",
+    ] {
         assert!(v.get(key).is_some(), "missing {key}");
     }
 }
@@ -66,7 +76,10 @@ fn info_notes_inferred_layers() {
     let out = poa(&["info", f.to_str().unwrap()]);
     assert!(out.status.success());
     let s = String::from_utf8(out.stdout).unwrap();
-    assert!(s.contains("no layer comments: layers inferred from Z"), "{s}");
+    assert!(
+        s.contains("no layer comments: layers inferred from Z"),
+        "{s}"
+    );
 }
 
 #[test]
@@ -86,7 +99,11 @@ fn bad_inputs_never_panic() {
     let full = read(&sample("rect_overhang_prusa_rel.gcode"));
     let truncated = write("truncated.gcode", &full[..full.len() / 2 + 7]);
     let out = poa(&["info", truncated.to_str().unwrap()]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
 
     // Not G-code: one-line refusal.
     let mut junk = Vec::new();

@@ -7,9 +7,7 @@ use printonair::gcode::LineReader;
 use printonair::layers::{LayerKind, LayerSource};
 
 fn concat_lines(data: &[u8]) -> Vec<u8> {
-    LineReader::new(data)
-        .flat_map(|l| l.unwrap().raw)
-        .collect()
+    LineReader::new(data).flat_map(|l| l.unwrap().raw).collect()
 }
 
 fn concat_layers(data: &[u8]) -> Vec<u8> {
@@ -21,8 +19,16 @@ fn concat_layers(data: &[u8]) -> Vec<u8> {
 fn every_sample_round_trips_byte_for_byte() {
     for path in samples() {
         let data = read(&path);
-        assert!(concat_lines(&data) == data, "{}: line reader", path.display());
-        assert!(concat_layers(&data) == data, "{}: layer reader", path.display());
+        assert!(
+            concat_lines(&data) == data,
+            "{}: line reader",
+            path.display()
+        );
+        assert!(
+            concat_layers(&data) == data,
+            "{}: layer reader",
+            path.display()
+        );
     }
 }
 
@@ -33,7 +39,10 @@ fn oddities_round_trip() {
         ("crlf", b"G1 X1\r\nG1 Y1 E1\r\n".to_vec()),
         ("mixed endings", b"G1 X1\r\nG1 Y1 E1\nG1 Z1\r\n".to_vec()),
         ("no final newline", b"G1 X1\nG1 Y1 E1".to_vec()),
-        ("non-utf8 comment", b"G1 X1 ; \xff\xfe caf\xe9\nG1 Y2 E1\n".to_vec()),
+        (
+            "non-utf8 comment",
+            b"G1 X1 ; \xff\xfe caf\xe9\nG1 Y2 E1\n".to_vec(),
+        ),
         ("trailing blanks", b"G1 X1   \t\n  \n\n".to_vec()),
         ("long line", long_line.into_bytes()),
         ("lone cr", b"G1 X1\rG1 Y1\n".to_vec()),
@@ -66,7 +75,10 @@ fn fifty_megabytes_round_trip_streaming() {
     );
     for layer in reader {
         let layer = layer.unwrap();
-        assert!(data[offset..offset + layer.raw.len()] == layer.raw[..], "mismatch at byte {offset}");
+        assert!(
+            data[offset..offset + layer.raw.len()] == layer.raw[..],
+            "mismatch at byte {offset}"
+        );
         offset += layer.raw.len();
     }
     assert_eq!(offset, data.len());
@@ -103,7 +115,10 @@ fn filament_matches_prusaslicer_footer_in_relative_and_absolute_e() {
         assert!((intro - 21.5).abs() < 0.1, "{name}: intro line {intro}");
         checked += 1;
     }
-    assert!(checked >= 8, "relative and absolute samples of four specimens");
+    assert!(
+        checked >= 8,
+        "relative and absolute samples of four specimens"
+    );
 }
 
 #[test]
@@ -128,11 +143,23 @@ fn layer_counts_equal_markers_and_survive_comment_stripping() {
 
         let stripped = strip_comments(&data);
         let (inferred, reader) = read_layers(&stripped, false);
-        assert_eq!(reader.facts().layer_source, LayerSource::InferredFromZ, "{name}");
+        assert_eq!(
+            reader.facts().layer_source,
+            LayerSource::InferredFromZ,
+            "{name}"
+        );
         assert_eq!(layer_count(&inferred), markers, "{name}: stripped");
         // Same Z sequence.
-        let za: Vec<f64> = layers.iter().filter(|l| l.kind == LayerKind::Layer).map(|l| l.z).collect();
-        let zb: Vec<f64> = inferred.iter().filter(|l| l.kind == LayerKind::Layer).map(|l| l.z).collect();
+        let za: Vec<f64> = layers
+            .iter()
+            .filter(|l| l.kind == LayerKind::Layer)
+            .map(|l| l.z)
+            .collect();
+        let zb: Vec<f64> = inferred
+            .iter()
+            .filter(|l| l.kind == LayerKind::Layer)
+            .map(|l| l.z)
+            .collect();
         for (a, b) in za.iter().zip(&zb) {
             assert!((a - b).abs() < 1e-4, "{name}: {a} vs {b}");
         }
@@ -141,10 +168,17 @@ fn layer_counts_equal_markers_and_survive_comment_stripping() {
 
 #[test]
 fn slic3r_and_nocomment_samples_infer_layers() {
-    for name in ["rect_overhang_slic3r.gcode", "rect_overhang_nocomments.gcode"] {
+    for name in [
+        "rect_overhang_slic3r.gcode",
+        "rect_overhang_nocomments.gcode",
+    ] {
         let data = read(&sample(name));
         let (layers, reader) = read_layers(&data, false);
-        assert_eq!(reader.facts().layer_source, LayerSource::InferredFromZ, "{name}");
+        assert_eq!(
+            reader.facts().layer_source,
+            LayerSource::InferredFromZ,
+            "{name}"
+        );
         assert_eq!(layer_count(&layers), 100, "{name}");
     }
 }
@@ -154,8 +188,11 @@ fn slic3r_trailing_comments_give_roles() {
     use printonair::layers::Role;
     let data = read(&sample("rect_overhang_slic3r.gcode"));
     let (layers, _) = read_layers(&data, false);
-    let roles: std::collections::BTreeSet<Role> =
-        layers.iter().flat_map(|l| &l.paths).map(|p| p.role).collect();
+    let roles: std::collections::BTreeSet<Role> = layers
+        .iter()
+        .flat_map(|l| &l.paths)
+        .map(|p| p.role)
+        .collect();
     assert!(roles.contains(&Role::Perimeter), "{roles:?}");
     assert!(roles.contains(&Role::Infill), "{roles:?}");
 }
@@ -167,13 +204,22 @@ fn widths_from_comments_and_from_e_agree_on_prusaslicer_output() {
     let (layers, reader) = read_layers(&data, false);
     let area = reader.filament_area();
     let mut n = 0;
-    for l in layers.iter().filter(|l| l.kind == LayerKind::Layer && l.index > 0) {
+    for l in layers
+        .iter()
+        .filter(|l| l.kind == LayerKind::Layer && l.index > 0)
+    {
         for p in &l.paths {
             if p.length() < 5.0 || p.role == printonair::layers::Role::BridgeInfill {
                 continue;
             }
             let ew = p.e_width(area);
-            assert!((ew - p.width).abs() < 0.03, "line {}: {} vs {}", p.seg_line[0], ew, p.width);
+            assert!(
+                (ew - p.width).abs() < 0.03,
+                "line {}: {} vs {}",
+                p.seg_line[0],
+                ew,
+                p.width
+            );
             n += 1;
         }
     }
@@ -195,7 +241,10 @@ fn arcs_units_relative_and_firmware_retraction_samples() {
         let (layers, reader) = read_layers(&data, false);
         let stated = reader.facts().stated_filament_mm.expect(name);
         let e: f64 = layers.iter().flat_map(|l| &l.paths).map(|p| p.e()).sum();
-        assert!((e - stated).abs() <= 0.005 * stated + 1e-3, "{name}: {e} vs {stated}");
+        assert!(
+            (e - stated).abs() <= 0.005 * stated + 1e-3,
+            "{name}: {e} vs {stated}"
+        );
         assert!(layer_count(&layers) >= 2, "{name}");
     }
 }

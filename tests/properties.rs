@@ -8,7 +8,13 @@ fn round_trip(data: &[u8]) {
     let lines: Vec<u8> = LineReader::new(data).flat_map(|l| l.unwrap().raw).collect();
     assert_eq!(lines, data);
     let config = SlicerConfig::parse(data);
-    let r = LayerReader::new(data, ReaderOptions { keep_raw: true, config });
+    let r = LayerReader::new(
+        data,
+        ReaderOptions {
+            keep_raw: true,
+            config,
+        },
+    );
     let raw: Vec<u8> = r.flat_map(|l| l.unwrap().raw).collect();
     assert_eq!(raw, data);
 }
@@ -16,7 +22,9 @@ fn round_trip(data: &[u8]) {
 /// Lines that look like G-code, to reach deeper into the interpreter than random bytes do.
 fn gcode_line() -> impl Strategy<Value = String> {
     let word = (
-        prop::sample::select(vec!['G', 'M', 'X', 'Y', 'Z', 'E', 'F', 'I', 'J', 'R', 'S', 'T', 'N']),
+        prop::sample::select(vec![
+            'G', 'M', 'X', 'Y', 'Z', 'E', 'F', 'I', 'J', 'R', 'S', 'T', 'N',
+        ]),
         prop_oneof![
             (-1000.0f64..1000.0).prop_map(|v| format!("{v:.3}")),
             Just("1e308".to_string()),
@@ -29,10 +37,30 @@ fn gcode_line() -> impl Strategy<Value = String> {
     prop_oneof![
         prop::collection::vec(word, 0..6).prop_map(|w| w.join(" ")),
         prop::sample::select(vec![
-            ";LAYER_CHANGE", ";Z:0.4", ";HEIGHT:0.2", ";TYPE:External perimeter", ";WIDTH:0.45",
-            ";LAYER:3", "G91", "G90", "M82", "M83", "G20", "G21", "G92 E0", "G10", "G11",
-            "EXCLUDE_OBJECT_START NAME=a", "M486 S1", "M486 Abox", "; printing object x",
-            "G2 X1 Y1 R-0.1 E1", "G3 X0 Y0 I0 J0 E1", "(unbalanced", "*255", "N1 G1*",
+            ";LAYER_CHANGE",
+            ";Z:0.4",
+            ";HEIGHT:0.2",
+            ";TYPE:External perimeter",
+            ";WIDTH:0.45",
+            ";LAYER:3",
+            "G91",
+            "G90",
+            "M82",
+            "M83",
+            "G20",
+            "G21",
+            "G92 E0",
+            "G10",
+            "G11",
+            "EXCLUDE_OBJECT_START NAME=a",
+            "M486 S1",
+            "M486 Abox",
+            "; printing object x",
+            "G2 X1 Y1 R-0.1 E1",
+            "G3 X0 Y0 I0 J0 E1",
+            "(unbalanced",
+            "*255",
+            "N1 G1*",
         ])
         .prop_map(String::from),
     ]

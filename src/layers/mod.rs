@@ -24,7 +24,7 @@ use serde::Serialize;
 pub use config::SlicerConfig;
 pub use dialect::{MarkerKind, Role, Slicer, Tag};
 
-use crate::gcode::{parse_line, strip_terminator, Command, LineReader};
+use crate::gcode::{parse_line, strip_terminator, Command};
 use crate::machine::{dist, Action, Diagnostics, Machine, Move};
 
 /// Two Z values closer than this (mm) are the same layer.
@@ -190,15 +190,22 @@ pub struct FileFacts {
 
 /// Streams [`Layer`]s out of G-code.
 pub struct LayerReader<R> {
-    lines: LineReader<R>,
-    buf: Vec<u8>,
+    input: R,
+    /// A line split across two reads of the input buffer.
+    partial: Vec<u8>,
+    next_line: u64,
+    done: bool,
+    st: State,
+}
+
+/// Everything the reader knows between two lines.
+struct State {
     machine: Machine,
     keep_raw: bool,
     filament_area: f64,
     config_layer_height: Option<f64>,
     facts: FileFacts,
-    /// Object names, indexed by [`Path::object`].
-    pub objects: Vec<String>,
+    objects: Vec<String>,
     /// What identifies each object in the file (label text, M486 id).
     object_keys: Vec<String>,
     diagnostics: Diagnostics,
@@ -219,11 +226,97 @@ pub struct LayerReader<R> {
     next_index: usize,
     prev_layer_z: f64,
     last_height: f64,
-    done: bool,
 }
 
 impl<R: BufRead> LayerReader<R> {
     pub fn new(input: R, options: ReaderOptions) -> Self {
+        LayerReader {
+            input,
+            partial: Vec::new(),
+            next_line: 1,
+            done: false,
+            st: State::new(options),
+        }
+    }
+
+    pub fn facts(&self) -> &FileFacts {
+        &self.st.facts
+    }
+
+    pub fn machine(&self) -> &Machine {
+        &self.st.machine
+    }
+
+    /// Reader diagnostics merged with the interpreter's.
+    pub fn diagnostics(&self) -> Diagnostics {
+        let mut d = self.st.diagnostics.clone();
+        d.merge(&self.st.machine.diagnostics);
+        d
+    }
+
+    pub fn filament_area(&self) -> f64 {
+        self.st.filament_area
+    }
+
+    /// Object names, indexed by [`Path::object`].
+    pub fn objects(&self) -> &[String] {
+        &self.st.objects
+    }
+
+    /// Feeds every complete line in the input's buffer to the state; returns false at the end
+    /// of input. Lines are handed over straight from the buffer, without a copy, unless one
+    /// straddles two reads.
+    fn pump(&mut self) -> io::Result<bool> {
+        let buf = loop {
+            match self.input.fill_buf() {
+                Ok(b) => break b,
+                Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
+                Err(e) => return Err(e),
+            }
+        };
+        if buf.is_empty() {
+            if !self.partial.is_empty() {
+                let line = std::mem::take(&mut self.partial);
+                self.st.handle_line(&line, self.next_line);
+                self.next_line += 1;
+            }
+            return Ok(false);
+        }
+        let mut used = 0;
+        if !self.partial.is_empty() {
+            match memchr::memchr(b'\n', buf) {
+                Some(i) => {
+                    self.partial.extend_from_slice(&buf[..=i]);
+                    used = i + 1;
+                    let line = std::mem::take(&mut self.partial);
+                    self.st.handle_line(&line, self.next_line);
+                    self.next_line += 1;
+                    self.partial = line;
+                    self.partial.clear();
+                }
+                None => {
+                    self.partial.extend_from_slice(buf);
+                    let n = buf.len();
+                    self.input.consume(n);
+                    return Ok(true);
+                }
+            }
+        }
+        while let Some(i) = memchr::memchr(b'\n', &buf[used..]) {
+            self.st
+                .handle_line(&buf[used..used + i + 1], self.next_line);
+            self.next_line += 1;
+            used += i + 1;
+        }
+        self.partial.extend_from_slice(&buf[used..]);
+        let n = buf.len();
+        self.input.consume(n);
+        Ok(true)
+    }
+}
+
+impl State {
+    fn new(options: ReaderOptions) -> Self {
         let cfg = &options.config;
         let mut machine = Machine::new();
         // A file that never says M82/M83 follows its slicer's setting.
@@ -232,9 +325,7 @@ impl<R: BufRead> LayerReader<R> {
             machine.step(&p, 0);
             machine.e_modes.relative = false;
         }
-        LayerReader {
-            lines: LineReader::new(input),
-            buf: Vec::with_capacity(256),
+        State {
             machine,
             keep_raw: options.keep_raw,
             filament_area: filament_area(cfg.filament_diameter()),
@@ -267,32 +358,11 @@ impl<R: BufRead> LayerReader<R> {
             next_index: 0,
             prev_layer_z: 0.0,
             last_height: 0.0,
-            done: false,
         }
     }
 
-    pub fn facts(&self) -> &FileFacts {
-        &self.facts
-    }
-
-    pub fn machine(&self) -> &Machine {
-        &self.machine
-    }
-
-    /// Reader diagnostics merged with the interpreter's.
-    pub fn diagnostics(&self) -> Diagnostics {
-        let mut d = self.diagnostics.clone();
-        d.merge(&self.machine.diagnostics);
-        d
-    }
-
-    pub fn filament_area(&self) -> f64 {
-        self.filament_area
-    }
-
-    fn handle_line(&mut self, number: u64) {
-        let raw = std::mem::take(&mut self.buf);
-        let content = strip_terminator(&raw);
+    fn handle_line(&mut self, raw: &[u8], number: u64) {
+        let content = strip_terminator(raw);
         let parsed = parse_line(content);
 
         if let Some(comment) = parsed.comment {
@@ -321,12 +391,11 @@ impl<R: BufRead> LayerReader<R> {
         }
 
         if self.keep_raw {
-            self.cur.raw.extend_from_slice(&raw);
+            self.cur.raw.extend_from_slice(raw);
         }
         self.cur.last_line = number;
         self.facts.lines = number;
         self.facts.bytes += raw.len() as u64;
-        self.buf = raw;
     }
 
     fn handle_comment(&mut self, comment: &[u8], number: u64, whole_line: bool) {
@@ -781,20 +850,17 @@ impl<R: BufRead> Iterator for LayerReader<R> {
 
     fn next(&mut self) -> Option<Self::Item> {
         loop {
-            if let Some(l) = self.ready.pop_front() {
+            if let Some(l) = self.st.ready.pop_front() {
                 return Some(Ok(l));
             }
             if self.done {
                 return None;
             }
-            let mut buf = std::mem::take(&mut self.buf);
-            let read = self.lines.read_into(&mut buf);
-            self.buf = buf;
-            match read {
-                Ok(Some(number)) => self.handle_line(number),
-                Ok(None) => {
+            match self.pump() {
+                Ok(true) => {}
+                Ok(false) => {
                     self.done = true;
-                    self.finish_input();
+                    self.st.finish_input();
                 }
                 Err(e) => {
                     self.done = true;
@@ -924,7 +990,7 @@ M486 S3\nM486 Abox\nG1 X20 E1\nM486 S-1\n";
         let layers: Vec<Layer> = r.by_ref().map(|l| l.unwrap()).collect();
         let ls = layers_only(&layers);
         assert_eq!(
-            r.objects,
+            r.objects(),
             vec!["part_1".to_string(), "box (id 3)".to_string()]
         );
         assert_eq!(ls[0].paths[0].object, Some(0));
