@@ -121,6 +121,12 @@ prepend_header "; poa sample: sliced by generate.sh from specimens/rect_overhang
 # evaluate the definition's formulas (the Cura GUI does), so every derived setting we care about
 # is given explicitly with -s. The machine is resized to an MK3S bed and the mesh (0..50 x 0..20
 # in the STL) is centred on it. infill_line_distance = 0.45 * 100 / 15 * 2 (grid pattern).
+# Extruder-train settings must be given to the extruder, not only globally: fdmprinter.def.json
+# names fdmextruder.def.json as extruder 0 (metadata.machine_extruder_trains), CuraEngine loads it
+# into extruder 0's own settings, and that file sets material_diameter = 2.85 (and the nozzle
+# size), which shadows a global `-s material_diameter=1.75`. So the per-extruder settings are
+# repeated after `-e0` (every `-s` after `-e0` goes to extruder 0, and `-l` after it puts the mesh
+# on extruder 0, so the mesh inherits mesh -> extruder 0 -> global).
 # Note: the CLI writes its header before slicing, so ";TIME:6666", ";Filament used: 0m" and the
 # ;MINX/;MAXX... values in it are placeholders (the Cura GUI patches them afterwards).
 # ---------------------------------------------------------------------------------------------
@@ -147,19 +153,34 @@ cura_settings=(
     material_diameter=1.75 material_print_temperature=215 material_print_temperature_layer_0=215
     material_bed_temperature=60 material_bed_temperature_layer_0=60
     layer_height=0.2 layer_height_0=0.2
-    line_width=0.45 wall_line_width_0=0.45 wall_line_width_x=0.45 skin_line_width=0.45
-    infill_line_width=0.45 skirt_brim_line_width=0.45
+    line_width=0.45 wall_line_width=0.45 wall_line_width_0=0.45 wall_line_width_x=0.45
+    skin_line_width=0.45 infill_line_width=0.45 skirt_brim_line_width=0.45
     wall_line_count=2 top_layers=5 bottom_layers=4
     infill_sparse_density=15 infill_pattern=grid infill_line_distance=6
     retraction_amount=0.8 adhesion_type=skirt support_enable=false
     mesh_position_x=-25 mesh_position_y=-10
 )
+# Given to extruder 0 after -e0 (extruder-train and per-mesh settings: filament, nozzle,
+# temperatures, retraction, layer height and line widths).
+cura_extruder_settings=(
+    material_diameter=1.75 machine_nozzle_size=0.4
+    material_print_temperature=215 material_print_temperature_layer_0=215
+    layer_height=0.2 layer_height_0=0.2
+    line_width=0.45 wall_line_width=0.45 wall_line_width_0=0.45 wall_line_width_x=0.45
+    skin_line_width=0.45 infill_line_width=0.45 skirt_brim_line_width=0.45
+    wall_line_count=2 top_layers=5 bottom_layers=4
+    infill_sparse_density=15 infill_pattern=grid infill_line_distance=6
+    retraction_amount=0.8
+)
 cura_args=()
 for s in "${cura_settings[@]}"; do cura_args+=(-s "$s"); done
+cura_args+=(-e0)
+for s in "${cura_extruder_settings[@]}"; do cura_args+=(-s "$s"); done
 CuraEngine slice -v -j "$defs/fdmprinter.def.json" "${cura_args[@]}" \
     -l rect_overhang.stl -o "$raw" >"$WORK/cura.log" 2>&1 || { tail -n 30 "$WORK/cura.log" >&2; exit 1; }
+grep -q '^;TYPE:WALL-OUTER' "$raw" || { echo "generate.sh: $raw has no ;TYPE:WALL-OUTER" >&2; exit 1; }
 version=$(sed -n 's/^;Generated with Cura_SteamEngine \(.*\)$/\1/p' "$raw" | head -n 1)
-prepend_header "; poa sample: sliced by generate.sh from specimens/rect_overhang.stl with CuraEngine ${version:-4.13} (fdmprinter definition, MK3S-like settings), absolute E" \
+prepend_header "; poa sample: sliced by generate.sh from specimens/rect_overhang.stl with CuraEngine ${version:-4.13} (fdmprinter definition, MK3S-like settings, 1.75 mm filament and 0.45 mm lines set on extruder 0 with -e0), absolute E" \
     "$raw" "$OUT_DIR/rect_overhang_cura.gcode"
 
 echo "done; hand-written samples (see README.md) were left untouched"

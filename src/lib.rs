@@ -7,6 +7,7 @@
 
 pub mod error;
 pub mod gcode;
+pub mod geometry;
 pub mod input;
 pub mod layers;
 pub mod machine;

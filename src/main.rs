@@ -6,6 +6,8 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+use printonair::geometry::{DetectOptions, Tolerance};
+use printonair::layers::SlicerConfig;
 use printonair::{input, report};
 
 #[derive(Parser)]
@@ -28,6 +30,66 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Find the regions that would print over air: overhangs and bridges, layer by layer.
+    Analyze {
+        file: PathBuf,
+        /// Machine-readable output (fields documented in README.md).
+        #[arg(long)]
+        json: bool,
+        #[command(flatten)]
+        detect: DetectArgs,
+    },
+}
+
+/// Region detection settings shared by the commands that detect regions.
+#[derive(clap::Args)]
+struct DetectArgs {
+    /// How far (mm) a point may lie from the layer below and still count as supported
+    /// [default: half the external perimeter width].
+    #[arg(long, value_name = "MM", conflicts_with = "overhang_angle")]
+    tolerance: Option<f64>,
+    /// The same as an overhang angle from vertical: tolerance = layer height x tan(angle).
+    #[arg(long, value_name = "DEG")]
+    overhang_angle: Option<f64>,
+    /// Narrowest region reported (mm) [default: the external perimeter width].
+    #[arg(long, value_name = "MM")]
+    min_width: Option<f64>,
+    /// Smallest region reported (mm2).
+    #[arg(long, value_name = "MM2", default_value_t = 1.0)]
+    min_area: f64,
+}
+
+impl DetectArgs {
+    fn options(&self, config: &SlicerConfig) -> anyhow::Result<DetectOptions> {
+        let mut o = report::detect_options(config);
+        if let Some(t) = self.tolerance {
+            anyhow::ensure!(
+                t.is_finite() && (0.0..=10.0).contains(&t),
+                "--tolerance must be between 0 and 10 mm"
+            );
+            o.tolerance = Tolerance::Distance(t);
+        }
+        if let Some(a) = self.overhang_angle {
+            anyhow::ensure!(
+                a.is_finite() && (0.0..90.0).contains(&a),
+                "--overhang-angle must be between 0 and 90 degrees"
+            );
+            o.tolerance = Tolerance::Angle(a);
+        }
+        if let Some(w) = self.min_width {
+            anyhow::ensure!(
+                w.is_finite() && (0.0..=50.0).contains(&w),
+                "--min-width must be between 0 and 50 mm"
+            );
+            o.min_width = Some(w);
+        }
+        anyhow::ensure!(
+            self.min_area.is_finite() && self.min_area >= 0.0,
+            "--min-area must be 0 or more"
+        );
+        o.min_area = self.min_area;
+        Ok(o)
+    }
 }
 
 fn main() -> ExitCode {
@@ -47,6 +109,19 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             let opened = input::open(&file)?;
             let name = file.display().to_string();
             let rep = report::info(opened.reader, opened.config, &name)
+                .map_err(|source| printonair::Error::Read { path: file, source })?;
+            if json {
+                println!("{}", serde_json::to_string_pretty(&rep)?);
+            } else {
+                print!("{rep}");
+            }
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Analyze { file, json, detect } => {
+            let opened = input::open(&file)?;
+            let opts = detect.options(&opened.config)?;
+            let name = file.display().to_string();
+            let rep = report::analyze(opened.reader, opened.config, &opts, &name)
                 .map_err(|source| printonair::Error::Read { path: file, source })?;
             if json {
                 println!("{}", serde_json::to_string_pretty(&rep)?);

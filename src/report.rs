@@ -1,7 +1,7 @@
 //! Last stage: what a user reads.
 //!
-//! Input: the stream of [`Layer`]s from [`crate::layers`]. Output: serialisable reports
-//! (`poa info`) with a human rendering that fits a terminal and a JSON rendering whose field
+//! Input: the stream of layers from [`crate::layers`] and regions from [`crate::geometry`].
+//! Output: serialisable reports (`poa info`, `poa analyze`) with a human rendering that fits a terminal and a JSON rendering whose field
 //! names are stable (documented in README.md).
 
 use std::collections::BTreeMap;
@@ -10,6 +10,9 @@ use std::io::BufRead;
 
 use serde::Serialize;
 
+use geo::BoundingRect;
+
+use crate::geometry::{self, DetectOptions, Region, RegionKind, RoleExtrusion, Tolerance};
 use crate::layers::{
     filament_area, LayerKind, LayerReader, LayerSource, ReaderOptions, Role, SlicerConfig,
 };
@@ -128,16 +131,7 @@ pub fn info<R: BufRead>(input: R, config: SlicerConfig, file: &str) -> std::io::
         objects: reader.objects().to_vec(),
         lines: facts.lines,
         bytes: facts.bytes,
-        diagnostics: reader
-            .diagnostics()
-            .list()
-            .into_iter()
-            .map(|(line, message, count)| DiagnosticEntry {
-                line,
-                count,
-                message,
-            })
-            .collect(),
+        diagnostics: diagnostics(&reader.diagnostics()),
     })
 }
 
@@ -220,5 +214,253 @@ impl fmt::Display for InfoReport {
             }
         }
         Ok(())
+    }
+}
+
+/// One region as `poa analyze` reports it.
+#[derive(Debug, Clone, Serialize)]
+pub struct RegionReport {
+    /// 1-based, in file order.
+    pub id: usize,
+    /// 1-based layer number (the first layer is 1).
+    pub layer: usize,
+    pub z: f64,
+    pub kind: RegionKind,
+    pub area_mm2: f64,
+    pub max_distance_mm: f64,
+    pub anchored_length_mm: f64,
+    pub anchors: usize,
+    pub object: Option<String>,
+    /// [min x, min y, max x, max y] in mm.
+    pub bbox: [f64; 4],
+    /// Original extrusions inside the region, by role.
+    pub extrusions: Vec<RoleExtrusion>,
+    /// Sum of `extrusions`: what the slicer lays over air here.
+    pub over_air_length_mm: f64,
+    pub over_air_filament_mm: f64,
+}
+
+/// Totals of `poa analyze`.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct AnalyzeSummary {
+    pub regions: usize,
+    pub overhangs: usize,
+    pub bridges: usize,
+    pub floating: usize,
+    pub layers_with_regions: usize,
+    pub area_mm2: f64,
+    pub over_air_length_mm: f64,
+    pub over_air_filament_mm: f64,
+    /// All extrusion inside layers, for scale.
+    pub extruded_length_mm: f64,
+}
+
+/// The detection settings a report was made with.
+#[derive(Debug, Clone, Serialize)]
+pub struct DetectSettings {
+    pub tolerance: Tolerance,
+    /// Tolerance in mm at the file's first layer height above the first layer.
+    pub tolerance_mm: f64,
+    pub min_width_mm: f64,
+    pub min_area_mm2: f64,
+    pub external_width_mm: f64,
+}
+
+/// `poa analyze`: where the file prints over air.
+#[derive(Debug, Clone, Serialize)]
+pub struct AnalyzeReport {
+    pub file: String,
+    pub slicer: String,
+    pub layers: usize,
+    pub layer_source: LayerSource,
+    pub settings: DetectSettings,
+    pub summary: AnalyzeSummary,
+    pub regions: Vec<RegionReport>,
+    pub diagnostics: Vec<DiagnosticEntry>,
+}
+
+/// The detection options a file's own settings call for.
+pub fn detect_options(config: &SlicerConfig) -> DetectOptions {
+    DetectOptions {
+        external_width: config.external_perimeter_width(),
+        ..Default::default()
+    }
+}
+
+/// Reads a file through region detection and summarises what lies over air.
+pub fn analyze<R: BufRead>(
+    input: R,
+    config: SlicerConfig,
+    opts: &DetectOptions,
+    file: &str,
+) -> std::io::Result<AnalyzeReport> {
+    let mut reader = LayerReader::new(
+        input,
+        ReaderOptions {
+            keep_raw: false,
+            config,
+        },
+    );
+    let mut regions: Vec<(Region, Option<u32>)> = Vec::new();
+    let mut layers = 0usize;
+    let mut extruded = 0.0;
+    let mut first_height = None;
+    geometry::detect(reader.by_ref(), opts, |d| {
+        if d.layer.kind == LayerKind::Layer {
+            layers += 1;
+            extruded += d.layer.paths.iter().map(|p| p.length()).sum::<f64>();
+            if d.layer.index == 1 {
+                first_height = Some(d.layer.height);
+            }
+        }
+        regions.extend(d.regions.into_iter().map(|r| {
+            let o = r.object;
+            (r, o)
+        }));
+        Ok(())
+    })?;
+    let objects = reader.objects().to_vec();
+    let facts = reader.facts().clone();
+    let mut summary = AnalyzeSummary {
+        extruded_length_mm: extruded,
+        ..Default::default()
+    };
+    let mut layer_ids = Vec::new();
+    let reports: Vec<RegionReport> = regions
+        .into_iter()
+        .enumerate()
+        .map(|(i, (r, object))| {
+            let bbox = r
+                .polygon
+                .bounding_rect()
+                .map(|b| [b.min().x, b.min().y, b.max().x, b.max().y])
+                .unwrap_or([0.0; 4]);
+            let len: f64 = r.extrusions.iter().map(|e| e.length_mm).sum();
+            let fil: f64 = r.extrusions.iter().map(|e| e.filament_mm).sum();
+            summary.regions += 1;
+            match r.kind {
+                RegionKind::Overhang => summary.overhangs += 1,
+                RegionKind::Bridge => summary.bridges += 1,
+                RegionKind::Floating => summary.floating += 1,
+            }
+            summary.area_mm2 += r.area;
+            summary.over_air_length_mm += len;
+            summary.over_air_filament_mm += fil;
+            if layer_ids.last() != Some(&r.layer) {
+                layer_ids.push(r.layer);
+            }
+            RegionReport {
+                id: i + 1,
+                layer: r.layer + 1,
+                z: r.z,
+                kind: r.kind,
+                area_mm2: r.area,
+                max_distance_mm: r.max_distance,
+                anchored_length_mm: r.anchored_length,
+                anchors: r.anchors,
+                object: object.and_then(|o| objects.get(o as usize).cloned()),
+                bbox,
+                extrusions: r.extrusions,
+                over_air_length_mm: len,
+                over_air_filament_mm: fil,
+            }
+        })
+        .collect();
+    summary.layers_with_regions = layer_ids.len();
+    Ok(AnalyzeReport {
+        file: file.to_string(),
+        slicer: facts.slicer.name().to_string(),
+        layers,
+        layer_source: facts.layer_source,
+        settings: DetectSettings {
+            tolerance: opts.tolerance,
+            tolerance_mm: opts.tolerance_at(first_height.unwrap_or(0.2)),
+            min_width_mm: opts.min_width(),
+            min_area_mm2: opts.min_area,
+            external_width_mm: opts.external_width,
+        },
+        summary,
+        regions: reports,
+        diagnostics: diagnostics(&reader.diagnostics()),
+    })
+}
+
+fn diagnostics(d: &crate::machine::Diagnostics) -> Vec<DiagnosticEntry> {
+    d.list()
+        .into_iter()
+        .map(|(line, message, count)| DiagnosticEntry {
+            line,
+            count,
+            message,
+        })
+        .collect()
+}
+
+impl fmt::Display for AnalyzeReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let s = &self.summary;
+        writeln!(f, "{} ({}, {} layers)", self.file, self.slicer, self.layers)?;
+        if s.regions == 0 {
+            writeln!(f, "  no region prints over air")?;
+        } else {
+            writeln!(
+                f,
+                "  {} region{} over air on {} layer{}: {} overhang, {} bridge, {} floating",
+                s.regions,
+                plural(s.regions),
+                s.layers_with_regions,
+                plural(s.layers_with_regions),
+                s.overhangs,
+                s.bridges,
+                s.floating
+            )?;
+            let share = if s.extruded_length_mm > 0.0 {
+                100.0 * s.over_air_length_mm / s.extruded_length_mm
+            } else {
+                0.0
+            };
+            writeln!(
+                f,
+                "  over air: {:.0} mm of extrusion ({share:.1} % of the print), {:.1} mm of filament",
+                s.over_air_length_mm, s.over_air_filament_mm
+            )?;
+            writeln!(f)?;
+            writeln!(
+                f,
+                "  {:>4} {:>5} {:>7}  {:<8} {:>9} {:>8} {:>9}  object",
+                "#", "layer", "Z mm", "kind", "area mm2", "reach mm", "anchor mm"
+            )?;
+            for r in &self.regions {
+                writeln!(
+                    f,
+                    "  {:>4} {:>5} {:>7.2}  {:<8} {:>9.1} {:>8.1} {:>9.1}  {}",
+                    r.id,
+                    r.layer,
+                    r.z,
+                    r.kind.name(),
+                    r.area_mm2,
+                    r.max_distance_mm,
+                    r.anchored_length_mm,
+                    r.object.as_deref().unwrap_or("-")
+                )?;
+            }
+        }
+        writeln!(
+            f,
+            "  (tolerance {:.3} mm, minimum width {:.2} mm, minimum area {:.1} mm2)",
+            self.settings.tolerance_mm, self.settings.min_width_mm, self.settings.min_area_mm2
+        )?;
+        for d in &self.diagnostics {
+            writeln!(f, "  note: line {}: {}", d.line, d.message)?;
+        }
+        Ok(())
+    }
+}
+
+fn plural(n: usize) -> &'static str {
+    if n == 1 {
+        ""
+    } else {
+        "s"
     }
 }

@@ -120,3 +120,43 @@ fn bad_inputs_never_panic() {
     let missing = dir.path().join("missing.gcode");
     assert_clean_failure(&poa(&["info", missing.to_str().unwrap()]), "missing file");
 }
+
+#[test]
+fn analyze_json_lists_regions() {
+    let f = sample("bridge_prusa_rel.gcode");
+    let out = poa(&["analyze", "--json", f.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["summary"]["regions"], 1);
+    assert_eq!(v["summary"]["bridges"], 1);
+    let r = &v["regions"][0];
+    assert_eq!(r["kind"], "bridge");
+    assert_eq!(r["layer"], 51);
+    assert!((r["z"].as_f64().unwrap() - 10.2).abs() < 1e-9);
+    for key in [
+        "id", "area_mm2", "max_distance_mm", "anchored_length_mm", "anchors", "object", "bbox",
+        "extrusions", "over_air_length_mm", "over_air_filament_mm",
+    ] {
+        assert!(r.get(key).is_some(), "missing {key}");
+    }
+    assert!(v["settings"]["tolerance_mm"].as_f64().unwrap() > 0.2);
+}
+
+#[test]
+fn analyze_human_output_and_settings() {
+    let f = sample("rect_overhang_prusa_rel.gcode");
+    let out = poa(&["analyze", f.to_str().unwrap()]);
+    let s = String::from_utf8(out.stdout).unwrap();
+    assert!(s.contains("1 region over air on 1 layer"), "{s}");
+    assert!(s.contains("overhang"), "{s}");
+    // A 10 mm tolerance swallows the overhang's first 10 mm; the rest is still reported.
+    let out = poa(&["analyze", "--json", "--tolerance", "10", f.to_str().unwrap()]);
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let a = v["regions"][0]["area_mm2"].as_f64().unwrap();
+    assert!((a - 600.0).abs() < 10.0, "{a}");
+    // Nonsense settings are refused with a message.
+    assert_clean_failure(
+        &poa(&["analyze", "--overhang-angle", "95", f.to_str().unwrap()]),
+        "angle out of range",
+    );
+}

@@ -57,3 +57,39 @@ pub fn strip_comments(data: &[u8]) -> Vec<u8> {
 pub fn read(p: &Path) -> Vec<u8> {
     std::fs::read(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
 }
+
+/// The shared reference folder beside the checkout.
+pub fn shared() -> PathBuf {
+    let p = repo().join("..").join("shared");
+    assert!(
+        p.is_dir(),
+        "tests need ../shared beside the checkout ({})",
+        p.display()
+    );
+    p
+}
+
+/// Slices a specimen with PrusaSlicer's CLI and the samples' config plus `args`.
+pub fn slice(specimen: &str, args: &[&str]) -> Vec<u8> {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out.gcode");
+    let stl = shared().join("specimens").join(format!("{specimen}.stl"));
+    let config = repo().join("sample-gcode/config/prusaslicer-mk3s-pla.ini");
+    let status = std::process::Command::new("prusa-slicer")
+        .arg("--load")
+        .arg(&config)
+        .args(args)
+        .arg("--export-gcode")
+        .arg("-o")
+        .arg(&out)
+        .arg(&stl)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .status()
+        .expect("prusa-slicer must be installed for this test (apt-get install -y prusa-slicer)");
+    assert!(
+        status.success(),
+        "prusa-slicer failed on {specimen} {args:?}"
+    );
+    read(&out)
+}

@@ -1,0 +1,327 @@
+//! A layer's printed area: what the layer above can rest on.
+//!
+//! The footprint of a strand is its centerline buffered by half its width. A layer's printed
+//! area is the union of its footprints with the gaps *inside* the part closed: the air between
+//! sparse-infill lines, or between an inner perimeter and the infill, is not air for the layer
+//! above (a slicer bridges it on purpose). Real holes of the part stay open.
+//!
+//! Which holes are infill gaps: when the file tags sparse infill, it is left out of the
+//! footprint altogether, and a hole that contains sparse infill is closed (the region it fills
+//! becomes one hole walled by inner perimeters). When the file tells external perimeters apart,
+//! a hole is also closed unless its edge runs along an external perimeter (a hole in a part is
+//! always walled by one). Holes narrower than `min_hole` are closed whatever walls them.
+//! Without roles, every strand is buffered and a hole is closed when it is narrower than
+//! `gap_close` (no disc of that diameter fits).
+
+use std::collections::BTreeMap;
+
+use geo::algorithm::buffer::{BufferStyle, LineCap, LineJoin};
+use geo::{
+    coord, orient::Direction, unary_union, Area, BooleanOps, BoundingRect, Buffer, Contains,
+    LineString, MultiLineString, MultiPolygon, Orient, Point, Polygon,
+};
+
+use crate::layers::{Layer, Path, Role};
+
+use super::offset;
+
+/// How a printed area is computed.
+#[derive(Debug, Clone)]
+pub struct AreaOptions {
+    /// Without roles: holes narrower than this (mm) are infill gaps and get closed.
+    pub gap_close: f64,
+    /// Holes no wider than this (mm) are closed whatever walls them: nothing the layer above
+    /// prints across them needs help.
+    pub min_hole: f64,
+}
+
+impl Default for AreaOptions {
+    fn default() -> Self {
+        AreaOptions {
+            gap_close: 6.0,
+            min_hole: 1.0,
+        }
+    }
+}
+
+/// Join and cap arcs: segment length / radius (radians).
+const ROUND_ANGLE: f64 = 0.35;
+
+/// Union of the strands' footprints (centerline buffered by width / 2, round caps and joins).
+pub fn footprint<'a>(paths: impl IntoIterator<Item = &'a Path>) -> MultiPolygon<f64> {
+    // One buffer call per width: geo buffers a MultiLineString at one distance.
+    let mut by_width: BTreeMap<i64, Vec<LineString<f64>>> = BTreeMap::new();
+    for p in paths {
+        if p.points.len() < 2 || !(p.width > 0.0 && p.width < 50.0) {
+            continue;
+        }
+        let mut pts: Vec<geo::Coord<f64>> = Vec::with_capacity(p.points.len());
+        for q in &p.points {
+            let c = coord! {x: q[0], y: q[1]};
+            if pts.last().is_none_or(|l: &geo::Coord<f64>| {
+                (l.x - c.x).abs() > 1e-7 || (l.y - c.y).abs() > 1e-7
+            }) {
+                pts.push(c);
+            }
+        }
+        if pts.len() < 2 {
+            continue;
+        }
+        let key = (p.width * 1000.0).round() as i64;
+        by_width.entry(key).or_default().push(LineString::new(pts));
+    }
+    let mut parts: Vec<MultiPolygon<f64>> = Vec::new();
+    for (key, lines) in by_width {
+        let half = key as f64 / 2000.0;
+        let style = BufferStyle::new(half)
+            .line_cap(LineCap::Round(ROUND_ANGLE))
+            .line_join(LineJoin::Round(ROUND_ANGLE));
+        parts.push(MultiLineString::new(lines).buffer_with_style(style));
+    }
+    match parts.len() {
+        0 => MultiPolygon::new(Vec::new()),
+        1 => parts.pop().unwrap_or_else(|| MultiPolygon::new(Vec::new())),
+        _ => unary_union(parts.iter().flat_map(|m| m.0.iter())),
+    }
+}
+
+/// Strands that hold up the layer above: the part and its support, not skirt or priming.
+fn supports(role: Role) -> bool {
+    role.is_part() || matches!(role, Role::Support | Role::SupportInterface)
+}
+
+/// The area a layer covers for the layer above, holes that are infill gaps closed.
+pub fn printed_area(layer: &Layer, opts: &AreaOptions) -> MultiPolygon<f64> {
+    let walls: Vec<&Path> = layer
+        .paths
+        .iter()
+        .filter(|p| matches!(p.role, Role::ExternalPerimeter | Role::OverhangPerimeter))
+        .collect();
+    let walls_known = walls.iter().any(|p| p.role == Role::ExternalPerimeter);
+    let infill: Vec<[f64; 2]> = layer
+        .paths
+        .iter()
+        .filter(|p| p.role == Role::Infill)
+        .flat_map(|p| {
+            p.points
+                .windows(2)
+                .map(|w| [(w[0][0] + w[1][0]) / 2.0, (w[0][1] + w[1][1]) / 2.0])
+        })
+        .collect();
+    let infill_known = !infill.is_empty();
+    let strands = layer
+        .paths
+        .iter()
+        .filter(|p| supports(p.role) && !(infill_known && p.role == Role::Infill));
+    let fp = footprint(strands);
+    if walls_known || infill_known {
+        let wall_fp = if walls_known {
+            wall_zone(&walls)
+        } else {
+            MultiPolygon::new(Vec::new())
+        };
+        close_holes(fp, |hole| {
+            hole_width_below(hole, opts.min_hole)
+                || contains_any(hole, &infill)
+                || (walls_known && !walled_by(hole, &wall_fp))
+        })
+    } else {
+        close_holes(fp, |hole| hole_width_below(hole, opts.gap_close))
+    }
+}
+
+/// Whether any of `points` lies inside the ring.
+fn contains_any(hole: &LineString<f64>, points: &[[f64; 2]]) -> bool {
+    let Some(bb) = hole.bounding_rect() else {
+        return false;
+    };
+    let poly = Polygon::new(hole.clone(), Vec::new());
+    points.iter().any(|p| {
+        p[0] >= bb.min().x
+            && p[0] <= bb.max().x
+            && p[1] >= bb.min().y
+            && p[1] <= bb.max().y
+            && poly.contains(&Point::new(p[0], p[1]))
+    })
+}
+
+/// Where an external perimeter's inner edge can be: its footprint grown by a margin.
+fn wall_zone(walls: &[&Path]) -> MultiPolygon<f64> {
+    let fp = footprint(walls.iter().copied());
+    offset(&fp, 0.1)
+}
+
+/// Whether most of a hole's edge runs along an external perimeter.
+fn walled_by(hole: &LineString<f64>, walls: &MultiPolygon<f64>) -> bool {
+    let n = hole.0.len().saturating_sub(1).max(1);
+    let on_wall = hole.0[..n]
+        .iter()
+        .filter(|c| walls.contains(&Point::from(**c)))
+        .count();
+    on_wall * 2 >= n
+}
+
+/// Whether no disc of diameter `width` fits in the hole.
+fn hole_width_below(hole: &LineString<f64>, width: f64) -> bool {
+    let poly = MultiPolygon::new(vec![Polygon::new(hole.clone(), Vec::new())]);
+    offset(&poly, -width / 2.0).unsigned_area() < 1e-6
+}
+
+/// Fills the holes for which `close` says so. A filled hole becomes material except where
+/// other islands of the footprint sit inside it: those keep their own holes, which get their
+/// own verdict.
+fn close_holes(
+    fp: MultiPolygon<f64>,
+    mut close: impl FnMut(&LineString<f64>) -> bool,
+) -> MultiPolygon<f64> {
+    let mut fills: Vec<Polygon<f64>> = Vec::new();
+    for (pi, p) in fp.0.iter().enumerate() {
+        for hole in p.interiors() {
+            if !close(hole) {
+                continue;
+            }
+            // Holes wind the other way round; as an exterior it must wind like one.
+            let hp = Polygon::new(hole.clone(), Vec::new()).orient(Direction::Default);
+            let bbox = hp.bounding_rect();
+            let nested: Vec<Polygon<f64>> =
+                fp.0.iter()
+                    .enumerate()
+                    .filter(|(qi, q)| {
+                        *qi != pi
+                            && q.exterior().0.first().is_some_and(|c| {
+                                bbox.is_some_and(|b| {
+                                    c.x >= b.min().x
+                                        && c.x <= b.max().x
+                                        && c.y >= b.min().y
+                                        && c.y <= b.max().y
+                                }) && hp.contains(&Point::from(*c))
+                            })
+                    })
+                    .map(|(_, q)| super::exterior_only(q))
+                    .collect();
+            if nested.is_empty() {
+                fills.push(hp);
+            } else {
+                let inner = unary_union(nested.iter());
+                fills.extend(BooleanOps::difference(&hp, &inner).0);
+            }
+        }
+    }
+    if fills.is_empty() {
+        return fp;
+    }
+    unary_union(fp.0.iter().chain(fills.iter()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::layers::{LayerKind, Role};
+
+    fn path(role: Role, width: f64, pts: &[[f64; 2]]) -> Path {
+        Path {
+            role,
+            width,
+            height: 0.2,
+            z: 0.2,
+            object: None,
+            tool: 0,
+            points: pts.to_vec(),
+            seg_line: vec![1; pts.len() - 1],
+            seg_e: vec![0.01; pts.len() - 1],
+            feed: 1200.0,
+        }
+    }
+
+    fn layer(paths: Vec<Path>) -> Layer {
+        Layer {
+            kind: LayerKind::Layer,
+            index: 1,
+            marker_number: None,
+            z: 0.4,
+            height: 0.2,
+            paths,
+            first_line: 1,
+            last_line: 1,
+            raw: Vec::new(),
+        }
+    }
+
+    fn square_loop(role: Role, x0: f64, y0: f64, x1: f64, y1: f64) -> Path {
+        path(
+            role,
+            0.45,
+            &[[x0, y0], [x1, y0], [x1, y1], [x0, y1], [x0, y0]],
+        )
+    }
+
+    #[test]
+    fn horizontal_single_segment_strands_keep_their_area() {
+        // Ten horizontal two-point strands 0.45 wide, 0.45 apart: a solid 10 x 4.5 patch.
+        let paths: Vec<Path> = (0..10)
+            .map(|i| {
+                let y = 0.225 + 0.45 * i as f64;
+                path(Role::Unknown, 0.45, &[[0.0, y], [10.0, y]])
+            })
+            .collect();
+        let fp = footprint(&paths);
+        // Rounded caps add pi r^2 per strand end pair, minus overlaps: between 45 and 46.6.
+        let a = fp.unsigned_area();
+        assert!(a > 45.0 && a < 46.7, "{a}");
+        let area = printed_area(&layer(paths), &AreaOptions::default());
+        assert!((area.unsigned_area() - a).abs() < 1e-6);
+    }
+
+    #[test]
+    fn sparse_infill_gaps_are_not_air() {
+        // A 20 x 20 wall loop with two perimeters and sparse infill lines 3 mm apart.
+        let mut paths = vec![
+            square_loop(Role::ExternalPerimeter, 0.225, 0.225, 19.775, 19.775),
+            square_loop(Role::Perimeter, 0.65, 0.65, 19.35, 19.35),
+        ];
+        for i in 0..6 {
+            let x = 2.0 + 3.0 * i as f64;
+            paths.push(path(Role::Infill, 0.45, &[[x, 0.8], [x, 19.2]]));
+        }
+        let area = printed_area(&layer(paths.clone()), &AreaOptions::default());
+        assert!(
+            (area.unsigned_area() - 400.0).abs() < 0.5,
+            "{}",
+            area.unsigned_area()
+        );
+        assert!(area.0.iter().all(|p| p.interiors().is_empty()));
+        // The same without roles: closed by width.
+        for p in &mut paths {
+            p.role = Role::Unknown;
+        }
+        let area = printed_area(&layer(paths), &AreaOptions::default());
+        assert!(
+            (area.unsigned_area() - 400.0).abs() < 0.5,
+            "{}",
+            area.unsigned_area()
+        );
+    }
+
+    #[test]
+    fn real_holes_stay_open() {
+        // A 30 x 30 part with a 10 x 10 hole, each walled by an external perimeter.
+        let paths = vec![
+            square_loop(Role::ExternalPerimeter, 0.225, 0.225, 29.775, 29.775),
+            square_loop(Role::ExternalPerimeter, 9.775, 9.775, 20.225, 20.225),
+            square_loop(Role::Perimeter, 0.65, 0.65, 29.35, 29.35),
+            square_loop(Role::Perimeter, 9.35, 9.35, 20.65, 20.65),
+            path(Role::Infill, 0.45, &[[1.0, 1.0], [8.0, 8.0]]),
+        ];
+        let area = printed_area(&layer(paths.clone()), &AreaOptions::default());
+        let a = area.unsigned_area();
+        assert!((a - 800.0).abs() < 1.0, "{a}");
+        // An island inside the real hole keeps its place, and the hole stays open around it.
+        let mut with_island = paths;
+        with_island.push(square_loop(Role::ExternalPerimeter, 14.5, 14.5, 15.5, 15.5));
+        let area = printed_area(&layer(with_island), &AreaOptions::default());
+        let b = area.unsigned_area();
+        // 1.45 mm square with corners rounded by 0.225 mm; its 0.55 mm eye is closed.
+        let island = 1.45 * 1.45 - (4.0 - std::f64::consts::PI) * 0.225 * 0.225;
+        assert!((b - a - island).abs() < 0.05, "{b}");
+    }
+}

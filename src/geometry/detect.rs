@@ -1,0 +1,88 @@
+//! Region detection over a stream of layers.
+//!
+//! Input: an iterator of [`Layer`]s. Output: for each block in file order, a [`Detected`] with
+//! the layer, its printed area, the printed area below it and its unsupported regions, handed
+//! to a callback. Layers are processed in small batches whose geometry runs on all cores;
+//! only a batch and the area of the layer before it are held at once.
+
+use std::io;
+
+use geo::MultiPolygon;
+use rayon::prelude::*;
+
+use crate::layers::{Layer, LayerKind};
+
+use super::{find_regions, printed_area, DetectOptions, Region};
+
+/// Layers per parallel batch: enough to keep two cores busy, few enough to keep memory flat.
+const BATCH: usize = 8;
+
+/// One block of the file with what detection found.
+pub struct Detected {
+    pub layer: Layer,
+    /// Printed area of this layer (empty for the preamble).
+    pub area: MultiPolygon<f64>,
+    /// Printed area of the layer below (empty for the first layer and the preamble).
+    pub below: MultiPolygon<f64>,
+    pub regions: Vec<Region>,
+}
+
+/// Runs detection over `layers`, calling `sink` for each block in order.
+pub fn detect<I, F>(layers: I, opts: &DetectOptions, mut sink: F) -> io::Result<()>
+where
+    I: Iterator<Item = io::Result<Layer>>,
+    F: FnMut(Detected) -> io::Result<()>,
+{
+    let mut below = MultiPolygon::new(Vec::new());
+    let mut batch: Vec<Layer> = Vec::with_capacity(BATCH);
+    let mut layers = layers.peekable();
+    loop {
+        let next = layers.next().transpose()?;
+        let end = next.is_none();
+        if let Some(l) = next {
+            batch.push(l);
+        }
+        if batch.len() < BATCH && !end {
+            continue;
+        }
+        let areas: Vec<MultiPolygon<f64>> = batch
+            .par_iter()
+            .map(|l| match l.kind {
+                LayerKind::Layer => printed_area(l, &opts.area),
+                LayerKind::Preamble => MultiPolygon::new(Vec::new()),
+            })
+            .collect();
+        let mut belows = Vec::with_capacity(batch.len());
+        for (l, a) in batch.iter().zip(&areas) {
+            belows.push(below.clone());
+            if l.kind == LayerKind::Layer {
+                below = a.clone();
+            }
+        }
+        let regions: Vec<Vec<Region>> = batch
+            .par_iter()
+            .zip(areas.par_iter())
+            .zip(belows.par_iter())
+            .map(|((l, a), b)| {
+                // The first layer rests on the bed.
+                if l.kind == LayerKind::Layer && l.index > 0 {
+                    find_regions(b, l, a, opts)
+                } else {
+                    Vec::new()
+                }
+            })
+            .collect();
+        for (((layer, area), below), regions) in batch.drain(..).zip(areas).zip(belows).zip(regions)
+        {
+            sink(Detected {
+                layer,
+                area,
+                below,
+                regions,
+            })?;
+        }
+        if end {
+            return Ok(());
+        }
+    }
+}

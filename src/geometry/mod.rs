@@ -1,0 +1,103 @@
+//! Stage 4: what each layer covers and what would be printed over air.
+//!
+//! Input: [`Layer`]s from [`crate::layers`]. Output: each layer's printed area (a
+//! `MultiPolygon` in mm) and the [`Region`]s of a layer that lie farther than a tolerance from
+//! the area printed below it, classified as overhang or bridge.
+//!
+//! Invariants: this is the only module that talks to Clipper (through geo-clipper), and it owns
+//! the coordinate scaling that needs ([`CLIPPER_SCALE`]). Strand footprints and booleans use
+//! geo (whose `Buffer` keeps horizontal two-point strands that Clipper's offset drops);
+//! polygon offsets use Clipper, which stays linear in vertex count. Areas are in mm2, lengths in
+//! mm.
+
+pub mod area;
+pub mod detect;
+pub mod regions;
+
+pub use area::{footprint, printed_area, AreaOptions};
+pub use detect::{detect, Detected};
+pub use regions::{find_regions, DetectOptions, Region, RegionKind, RoleExtrusion, Tolerance};
+
+use geo::{MultiPolygon, Polygon};
+use geo_clipper::{Clipper, EndType, JoinType};
+
+/// Clipper works on integers: coordinates are multiplied by this (0.1 um resolution).
+pub const CLIPPER_SCALE: f64 = 10_000.0;
+/// Largest distance (mm) between a round offset's arc and its chords.
+pub const ARC_TOLERANCE: f64 = 0.005;
+
+/// Grows (`delta` > 0) or shrinks a polygon set by `delta` mm with round joins.
+pub fn offset(mp: &MultiPolygon<f64>, delta: f64) -> MultiPolygon<f64> {
+    if mp.0.is_empty() {
+        return MultiPolygon::new(Vec::new());
+    }
+    mp.offset(
+        delta,
+        JoinType::Round(ARC_TOLERANCE * CLIPPER_SCALE),
+        EndType::ClosedPolygon,
+        CLIPPER_SCALE,
+    )
+}
+
+/// Morphological opening: removes every part narrower than `2 r`, keeps the rest's shape
+/// (up to rounding of convex corners by `r`).
+pub fn opening(mp: &MultiPolygon<f64>, r: f64) -> MultiPolygon<f64> {
+    if r <= 0.0 {
+        return mp.clone();
+    }
+    offset(&offset(mp, -r), r)
+}
+
+/// A polygon's exterior as a polygon without holes.
+pub fn exterior_only(p: &Polygon<f64>) -> Polygon<f64> {
+    Polygon::new(p.exterior().clone(), Vec::new())
+}
+
+#[cfg(test)]
+pub(crate) mod testutil {
+    use geo::{coord, LineString, MultiPolygon, Polygon};
+
+    pub fn rect(x0: f64, y0: f64, x1: f64, y1: f64) -> Polygon<f64> {
+        Polygon::new(
+            LineString::new(vec![
+                coord! {x: x0, y: y0},
+                coord! {x: x1, y: y0},
+                coord! {x: x1, y: y1},
+                coord! {x: x0, y: y1},
+                coord! {x: x0, y: y0},
+            ]),
+            Vec::new(),
+        )
+    }
+
+    pub fn mp(p: Vec<Polygon<f64>>) -> MultiPolygon<f64> {
+        MultiPolygon::new(p)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::testutil::*;
+    use super::*;
+    use geo::Area;
+
+    #[test]
+    fn offset_grows_and_shrinks() {
+        let sq = mp(vec![rect(0.0, 0.0, 10.0, 10.0)]);
+        let grown = offset(&sq, 1.0);
+        // 10x10 grown by 1 with round corners: 100 + 4*10 + pi.
+        let expected = 100.0 + 40.0 + std::f64::consts::PI;
+        assert!((grown.unsigned_area() - expected).abs() < 0.05);
+        let shrunk = offset(&sq, -1.0);
+        assert!((shrunk.unsigned_area() - 64.0).abs() < 1e-6);
+        assert!(offset(&sq, -6.0).0.is_empty());
+    }
+
+    #[test]
+    fn opening_drops_thin_parts() {
+        let thin = mp(vec![rect(0.0, 0.0, 10.0, 0.3), rect(0.0, 5.0, 10.0, 8.0)]);
+        let opened = opening(&thin, 0.2);
+        assert_eq!(opened.0.len(), 1);
+        assert!((opened.unsigned_area() - 30.0).abs() < 0.1);
+    }
+}

@@ -1,0 +1,500 @@
+//! Unsupported regions: sectC = sectB - sectA in the paper's terms.
+//!
+//! Input: the printed area of layer i-1 (sectA), layer i and its printed area (sectB).
+//! Output: the parts of sectB farther than a tolerance from sectA, at least `min_width` wide
+//! and `min_area` large, each classified by how its boundary is anchored:
+//! - overhang: anchored along one connected stretch of its boundary;
+//! - bridge: anchored along two or more separate stretches (a span between two supports);
+//! - floating: anchored nowhere (an island in the air).
+//!
+//! The sliver rule: a region survives when a disc of diameter `min_width` fits in it (a
+//! morphological opening by `min_width / 2` keeps something) and what survives covers at
+//! least `min_area`. With the defaults (one external perimeter width, 1 mm2) a slope of 70
+//! degrees at 0.2 mm layers (0.55 mm of overhang per layer, 0.33 mm beyond the tolerance) gives
+//! no region: the slicer's own overhang perimeters print it.
+
+use geo::{
+    Area, BooleanOps, BoundingRect, Contains, Distance, Euclidean, LineString, MultiLineString,
+    MultiPolygon, Point, Polygon,
+};
+use serde::Serialize;
+
+use crate::layers::{Layer, Role};
+
+use super::area::AreaOptions;
+use super::{offset, opening};
+
+/// How far from the layer below a point may be and still count as supported.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Tolerance {
+    /// Half the external perimeter width (the paper's rule of thumb for a bead's overhang).
+    Auto,
+    /// A fixed distance in mm.
+    Distance(f64),
+    /// An overhang angle from vertical in degrees: tolerance = layer height x tan(angle).
+    Angle(f64),
+}
+
+/// Settings of region detection.
+#[derive(Debug, Clone)]
+pub struct DetectOptions {
+    pub tolerance: Tolerance,
+    /// Narrowest region kept (mm); `None` means one external perimeter width.
+    pub min_width: Option<f64>,
+    /// Smallest region kept (mm2).
+    pub min_area: f64,
+    /// External perimeter width of the file (mm), for the defaults above.
+    pub external_width: f64,
+    pub area: AreaOptions,
+}
+
+impl Default for DetectOptions {
+    fn default() -> Self {
+        DetectOptions {
+            tolerance: Tolerance::Auto,
+            min_width: None,
+            min_area: 1.0,
+            external_width: 0.45,
+            area: AreaOptions::default(),
+        }
+    }
+}
+
+impl DetectOptions {
+    pub fn tolerance_at(&self, height: f64) -> f64 {
+        match self.tolerance {
+            Tolerance::Auto => self.external_width / 2.0,
+            Tolerance::Distance(d) => d.max(0.0),
+            Tolerance::Angle(a) => height.max(0.0) * a.clamp(0.0, 89.9).to_radians().tan(),
+        }
+    }
+
+    pub fn min_width(&self) -> f64 {
+        self.min_width.unwrap_or(self.external_width).max(0.0)
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RegionKind {
+    Overhang,
+    Bridge,
+    Floating,
+}
+
+impl RegionKind {
+    pub fn name(self) -> &'static str {
+        match self {
+            RegionKind::Overhang => "overhang",
+            RegionKind::Bridge => "bridge",
+            RegionKind::Floating => "floating",
+        }
+    }
+}
+
+/// What the slicer printed inside a region.
+#[derive(Debug, Clone, Serialize)]
+pub struct RoleExtrusion {
+    pub role: &'static str,
+    pub length_mm: f64,
+    pub filament_mm: f64,
+}
+
+/// One unsupported region of one layer.
+#[derive(Debug, Clone)]
+pub struct Region {
+    pub layer: usize,
+    pub z: f64,
+    pub height: f64,
+    pub kind: RegionKind,
+    pub polygon: Polygon<f64>,
+    pub area: f64,
+    /// Largest distance from a point of the region to the area printed below (mm).
+    pub max_distance: f64,
+    /// Length of the region's boundary that lies against the layer below (mm).
+    pub anchored_length: f64,
+    /// Number of separate anchored stretches.
+    pub anchors: usize,
+    /// The object most of the region's extrusions belong to.
+    pub object: Option<u32>,
+    /// Extrusions of the original file inside the region, by role.
+    pub extrusions: Vec<RoleExtrusion>,
+}
+
+/// Spacing of the samples along a region's boundary when measuring anchoring (mm).
+const ANCHOR_STEP: f64 = 0.2;
+/// Extra reach of the anchor zone beyond the tolerance, covering offset and opening rounding.
+const ANCHOR_SLACK: f64 = 0.15;
+
+/// Finds the unsupported regions of `layer`, whose printed area is `here`, over `below`.
+pub fn find_regions(
+    below: &MultiPolygon<f64>,
+    layer: &Layer,
+    here: &MultiPolygon<f64>,
+    opts: &DetectOptions,
+) -> Vec<Region> {
+    if here.0.is_empty() {
+        return Vec::new();
+    }
+    let tol = opts.tolerance_at(layer.height);
+    let grown = offset(below, tol);
+    let raw = if grown.0.is_empty() {
+        here.clone()
+    } else {
+        BooleanOps::difference(here, &grown)
+    };
+    if raw.unsigned_area() < opts.min_area {
+        return Vec::new();
+    }
+    let kept = opening(&raw, opts.min_width() / 2.0);
+    let anchor_zone = offset(below, tol + ANCHOR_SLACK);
+    kept.0
+        .into_iter()
+        .filter(|p| p.unsigned_area() >= opts.min_area)
+        .map(|polygon| describe(polygon, below, &anchor_zone, layer, opts))
+        .collect()
+}
+
+fn describe(
+    polygon: Polygon<f64>,
+    below: &MultiPolygon<f64>,
+    anchor_zone: &MultiPolygon<f64>,
+    layer: &Layer,
+    opts: &DetectOptions,
+) -> Region {
+    let min_stretch = opts.min_width();
+    let mut anchors = 0;
+    let mut anchored_length = 0.0;
+    for ring in std::iter::once(polygon.exterior()).chain(polygon.interiors()) {
+        let (n, len) = anchored_stretches(ring, anchor_zone, min_stretch);
+        anchors += n;
+        anchored_length += len;
+    }
+    let kind = match anchors {
+        0 => RegionKind::Floating,
+        1 => RegionKind::Overhang,
+        _ => RegionKind::Bridge,
+    };
+    let (extrusions, object) = extrusions_inside(&polygon, layer);
+    Region {
+        layer: layer.index,
+        z: layer.z,
+        height: layer.height,
+        kind,
+        area: polygon.unsigned_area(),
+        max_distance: max_distance(&polygon, below),
+        anchored_length,
+        anchors,
+        object,
+        extrusions,
+        polygon,
+    }
+}
+
+/// Samples `ring` every [`ANCHOR_STEP`] and returns how many maximal runs of samples lie in
+/// `zone` (runs shorter than `min_len` ignored, the ring treated as cyclic) and their length.
+fn anchored_stretches(
+    ring: &LineString<f64>,
+    zone: &MultiPolygon<f64>,
+    min_len: f64,
+) -> (usize, f64) {
+    if zone.0.is_empty() || ring.0.len() < 3 {
+        return (0, 0.0);
+    }
+    // (inside, length of the sample's share of the ring)
+    let mut samples: Vec<(bool, f64)> = Vec::new();
+    for w in ring.0.windows(2) {
+        let (a, b) = (w[0], w[1]);
+        let len = ((b.x - a.x).powi(2) + (b.y - a.y).powi(2)).sqrt();
+        let n = ((len / ANCHOR_STEP).ceil() as usize).max(1);
+        for k in 0..n {
+            let t = (k as f64 + 0.5) / n as f64;
+            let p = Point::new(a.x + (b.x - a.x) * t, a.y + (b.y - a.y) * t);
+            samples.push((zone.contains(&p), len / n as f64));
+        }
+    }
+    if samples.iter().all(|s| s.0) {
+        let total: f64 = samples.iter().map(|s| s.1).sum();
+        return (1, total);
+    }
+    // Rotate so that the sequence starts outside the zone: runs then never wrap.
+    let start = samples.iter().position(|s| !s.0).unwrap_or(0);
+    samples.rotate_left(start);
+    let (mut count, mut total, mut run) = (0, 0.0, 0.0);
+    for (inside, len) in samples.into_iter().chain(std::iter::once((false, 0.0))) {
+        if inside {
+            run += len;
+        } else if run > 0.0 {
+            if run >= min_len {
+                count += 1;
+                total += run;
+            }
+            run = 0.0;
+        }
+    }
+    (count, total)
+}
+
+/// Largest distance from the region to `below`, sampled at the region's vertices and on a
+/// grid inside it.
+fn max_distance(polygon: &Polygon<f64>, below: &MultiPolygon<f64>) -> f64 {
+    if below.0.is_empty() {
+        return f64::INFINITY;
+    }
+    let dist = |p: &Point<f64>| {
+        below
+            .0
+            .iter()
+            .map(|q| Euclidean.distance(p, q))
+            .fold(f64::INFINITY, f64::min)
+    };
+    let mut best: f64 = 0.0;
+    for c in polygon.exterior().0.iter() {
+        best = best.max(dist(&Point::from(*c)));
+    }
+    let Some(b) = polygon.bounding_rect() else {
+        return best;
+    };
+    // A coarse grid, then finer grids around the best point so far.
+    let mut step = (b.width().max(b.height()) / 30.0).max(0.1);
+    let (mut x0, mut y0, mut x1, mut y1) = (b.min().x, b.min().y, b.max().x, b.max().y);
+    for _ in 0..4 {
+        let mut best_p = None;
+        let mut y = y0 + step / 2.0;
+        while y < y1 {
+            let mut x = x0 + step / 2.0;
+            while x < x1 {
+                let p = Point::new(x, y);
+                if polygon.contains(&p) {
+                    let d = dist(&p);
+                    if d > best {
+                        best = d;
+                        best_p = Some(p);
+                    }
+                }
+                x += step;
+            }
+            y += step;
+        }
+        let Some(p) = best_p else { break };
+        (x0, y0, x1, y1) = (p.x() - step, p.y() - step, p.x() + step, p.y() + step);
+        step /= 5.0;
+    }
+    best
+}
+
+/// Length and filament of the layer's extrusions inside `polygon`, by role, and the object
+/// with the most length inside.
+fn extrusions_inside(polygon: &Polygon<f64>, layer: &Layer) -> (Vec<RoleExtrusion>, Option<u32>) {
+    let Some(bb) = polygon.bounding_rect() else {
+        return (Vec::new(), None);
+    };
+    let region = MultiPolygon::new(vec![polygon.clone()]);
+    let mut by_role: Vec<(Role, f64, f64)> = Vec::new();
+    let mut by_object: Vec<(Option<u32>, f64)> = Vec::new();
+    for p in &layer.paths {
+        let outside = p.points.iter().all(|q| q[0] < bb.min().x)
+            || p.points.iter().all(|q| q[0] > bb.max().x)
+            || p.points.iter().all(|q| q[1] < bb.min().y)
+            || p.points.iter().all(|q| q[1] > bb.max().y);
+        if outside || p.points.len() < 2 {
+            continue;
+        }
+        let line = LineString::from(p.points.iter().map(|q| (q[0], q[1])).collect::<Vec<_>>());
+        let inside = region.clip(&MultiLineString::new(vec![line]), false);
+        let len: f64 = inside
+            .0
+            .iter()
+            .flat_map(|l| l.0.windows(2))
+            .map(|w| ((w[1].x - w[0].x).powi(2) + (w[1].y - w[0].y).powi(2)).sqrt())
+            .sum();
+        if len <= 1e-9 {
+            continue;
+        }
+        let total = p.length();
+        let e = if total > 0.0 {
+            p.e() * len / total
+        } else {
+            0.0
+        };
+        match by_role.iter_mut().find(|r| r.0 == p.role) {
+            Some(r) => {
+                r.1 += len;
+                r.2 += e;
+            }
+            None => by_role.push((p.role, len, e)),
+        }
+        match by_object.iter_mut().find(|o| o.0 == p.object) {
+            Some(o) => o.1 += len,
+            None => by_object.push((p.object, len)),
+        }
+    }
+    by_role.sort_by_key(|r| r.0);
+    let object = by_object
+        .into_iter()
+        .max_by(|a, b| a.1.total_cmp(&b.1))
+        .and_then(|o| o.0);
+    (
+        by_role
+            .into_iter()
+            .map(|(role, length_mm, filament_mm)| RoleExtrusion {
+                role: role.name(),
+                length_mm,
+                filament_mm,
+            })
+            .collect(),
+        object,
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::testutil::*;
+    use super::*;
+    use crate::layers::LayerKind;
+    use geo::{coord, LineString};
+
+    fn layer() -> Layer {
+        Layer {
+            kind: LayerKind::Layer,
+            index: 5,
+            marker_number: None,
+            z: 1.2,
+            height: 0.2,
+            paths: Vec::new(),
+            first_line: 1,
+            last_line: 1,
+            raw: Vec::new(),
+        }
+    }
+
+    fn regions(below: Vec<Polygon<f64>>, here: Vec<Polygon<f64>>) -> Vec<Region> {
+        find_regions(&mp(below), &layer(), &mp(here), &DetectOptions::default())
+    }
+
+    fn circle(cx: f64, cy: f64, r: f64) -> LineString<f64> {
+        let n = 180;
+        LineString::new(
+            (0..=n)
+                .map(|i| {
+                    let a = std::f64::consts::TAU * (i % n) as f64 / n as f64;
+                    coord! {x: cx + r * a.cos(), y: cy + r * a.sin()}
+                })
+                .collect(),
+        )
+    }
+
+    #[test]
+    fn span_anchored_on_two_sides_is_a_bridge() {
+        let r = regions(
+            vec![rect(0.0, 0.0, 10.0, 20.0), rect(50.0, 0.0, 60.0, 20.0)],
+            vec![rect(0.0, 0.0, 60.0, 20.0)],
+        );
+        assert_eq!(r.len(), 1);
+        assert_eq!(r[0].kind, RegionKind::Bridge);
+        assert_eq!(r[0].anchors, 2);
+        let expected = (40.0 - 2.0 * 0.225) * 20.0;
+        assert!(
+            (r[0].area - expected).abs() / expected < 0.01,
+            "{}",
+            r[0].area
+        );
+        assert!(
+            (r[0].anchored_length - 40.0).abs() < 1.0,
+            "{}",
+            r[0].anchored_length
+        );
+        assert!(
+            (r[0].max_distance - 20.0).abs() < 0.5,
+            "{}",
+            r[0].max_distance
+        );
+    }
+
+    #[test]
+    fn cantilever_is_an_overhang() {
+        let r = regions(
+            vec![rect(0.0, 0.0, 10.0, 20.0)],
+            vec![rect(0.0, 0.0, 50.0, 20.0)],
+        );
+        assert_eq!(r.len(), 1);
+        assert_eq!(r[0].kind, RegionKind::Overhang);
+        assert!((r[0].area - 39.775 * 20.0).abs() < 2.0);
+        assert!(
+            (r[0].max_distance - (40.0f64.powi(2) + 20.0f64.powi(2)).sqrt()).abs() < 0.5
+                || (r[0].max_distance - 40.0).abs() < 0.5
+        );
+    }
+
+    #[test]
+    fn ring_around_a_stem_is_one_overhang_with_a_hole() {
+        let stem = Polygon::new(circle(0.0, 0.0, 5.0), Vec::new());
+        let disc = Polygon::new(circle(0.0, 0.0, 15.0), Vec::new());
+        let r = regions(vec![stem], vec![disc]);
+        assert_eq!(r.len(), 1);
+        assert_eq!(r[0].kind, RegionKind::Overhang);
+        assert_eq!(r[0].polygon.interiors().len(), 1);
+        let expected = std::f64::consts::PI * (15.0f64.powi(2) - 5.225f64.powi(2));
+        assert!((r[0].area - expected).abs() / expected < 0.01);
+    }
+
+    #[test]
+    fn two_disjoint_regions() {
+        let r = regions(
+            vec![rect(0.0, 0.0, 10.0, 10.0), rect(40.0, 0.0, 50.0, 10.0)],
+            vec![rect(0.0, 0.0, 20.0, 10.0), rect(40.0, 0.0, 50.0, 25.0)],
+        );
+        assert_eq!(r.len(), 2);
+        assert!(r.iter().all(|r| r.kind == RegionKind::Overhang));
+    }
+
+    #[test]
+    fn slope_of_45_degrees_gives_no_region() {
+        // Each 0.2 mm layer sticks out 0.2 mm: within the 0.225 mm tolerance.
+        let r = regions(
+            vec![rect(0.0, 0.0, 10.0, 10.0)],
+            vec![rect(0.0, 0.0, 10.2, 10.0)],
+        );
+        assert!(r.is_empty());
+    }
+
+    #[test]
+    fn slope_of_70_degrees_is_below_the_minimum_width() {
+        let step = 0.2 * 70f64.to_radians().tan();
+        let below = vec![rect(0.0, 0.0, 10.0, 20.0)];
+        let here = vec![rect(0.0, 0.0, 10.0 + step, 20.0)];
+        assert!(regions(below.clone(), here.clone()).is_empty());
+        // With a smaller minimum width the sliver is reported, as a thin overhang.
+        let opts = DetectOptions {
+            min_width: Some(0.2),
+            ..Default::default()
+        };
+        let r = find_regions(&mp(below), &layer(), &mp(here), &opts);
+        assert_eq!(r.len(), 1);
+        assert!(
+            (r[0].area - (step - 0.225) * 20.0).abs() < 0.3,
+            "{}",
+            r[0].area
+        );
+    }
+
+    #[test]
+    fn angle_tolerance() {
+        let opts = DetectOptions {
+            tolerance: Tolerance::Angle(45.0),
+            ..Default::default()
+        };
+        assert!((opts.tolerance_at(0.2) - 0.2).abs() < 1e-9);
+    }
+
+    #[test]
+    fn floating_island() {
+        let r = regions(
+            vec![rect(0.0, 0.0, 10.0, 10.0)],
+            vec![rect(30.0, 0.0, 40.0, 10.0)],
+        );
+        assert_eq!(r.len(), 1);
+        assert_eq!(r[0].kind, RegionKind::Floating);
+    }
+}
