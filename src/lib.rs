@@ -2,7 +2,8 @@
 //!
 //! The library is a pipeline of stages, each its own module, dependencies pointing one way:
 //! [`gcode`] (lossless syntax) -> [`machine`] (modal state, absolute moves) -> [`layers`]
-//! (dialects, layer model) -> [`report`] (what a user reads). The binary `poa` only parses
+//! (dialects, layer model) -> [`geometry`] (printed areas, regions over air) -> [`report`] and
+//! [`preview`] (what a user reads and sees). The binary `poa` only parses
 //! arguments, does file I/O and maps errors to exit codes.
 
 pub mod error;
@@ -11,6 +12,7 @@ pub mod geometry;
 pub mod input;
 pub mod layers;
 pub mod machine;
+pub mod preview;
 pub mod report;
 
 pub use error::Error;

@@ -8,7 +8,7 @@ use clap::{Parser, Subcommand};
 
 use printonair::geometry::{DetectOptions, Tolerance};
 use printonair::layers::SlicerConfig;
-use printonair::{input, report};
+use printonair::{input, preview, report};
 
 #[derive(Parser)]
 #[command(
@@ -36,6 +36,22 @@ enum Command {
         /// Machine-readable output (fields documented in README.md).
         #[arg(long)]
         json: bool,
+        #[command(flatten)]
+        detect: DetectArgs,
+    },
+    /// Draw layers as SVG: the layer below, the strands by role, the regions over air.
+    #[command(group(clap::ArgGroup::new("what").required(true).args(["layer", "regions"])))]
+    Preview {
+        file: PathBuf,
+        /// Draw this layer (1 = first layer) into the SVG file given with -o.
+        #[arg(long, value_name = "N")]
+        layer: Option<usize>,
+        /// Draw every layer that has regions into the folder given with -o, with an index.html.
+        #[arg(long)]
+        regions: bool,
+        /// Output: an .svg file with --layer, a folder with --regions.
+        #[arg(short, long, value_name = "PATH")]
+        output: PathBuf,
         #[command(flatten)]
         detect: DetectArgs,
     },
@@ -130,5 +146,61 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             }
             Ok(ExitCode::SUCCESS)
         }
+        Command::Preview {
+            file,
+            layer,
+            regions,
+            output,
+            detect,
+        } => {
+            let opened = input::open(&file)?;
+            let opts = detect.options(&opened.config)?;
+            let title = file
+                .file_name()
+                .map(|n| n.to_string_lossy().to_string())
+                .unwrap_or_default();
+            let read_err = |source| printonair::Error::Read {
+                path: file.clone(),
+                source,
+            };
+            if regions {
+                let previews =
+                    preview::preview_regions(opened.reader, opened.config, &opts, &title)
+                        .map_err(read_err)?;
+                std::fs::create_dir_all(&output).map_err(|source| printonair::Error::Write {
+                    path: output.clone(),
+                    source,
+                })?;
+                for (name, svg) in &previews.layers {
+                    write_file(&output.join(name), svg)?;
+                }
+                write_file(&output.join("index.html"), &previews.index)?;
+                eprintln!(
+                    "poa: {} layer{} with regions drawn; open {}",
+                    previews.layers.len(),
+                    if previews.layers.len() == 1 { "" } else { "s" },
+                    output.join("index.html").display()
+                );
+            } else if let Some(n) = layer {
+                let svg = preview::preview_layer(opened.reader, opened.config, &opts, n, &title)
+                    .map_err(read_err)?;
+                let Some(svg) = svg else {
+                    anyhow::bail!(
+                        "{} has no layer {n}; `poa info` shows how many it has",
+                        file.display()
+                    );
+                };
+                write_file(&output, &svg)?;
+            }
+            Ok(ExitCode::SUCCESS)
+        }
     }
+}
+
+fn write_file(path: &std::path::Path, text: &str) -> anyhow::Result<()> {
+    std::fs::write(path, text).map_err(|source| printonair::Error::Write {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    Ok(())
 }

@@ -125,7 +125,11 @@ fn bad_inputs_never_panic() {
 fn analyze_json_lists_regions() {
     let f = sample("bridge_prusa_rel.gcode");
     let out = poa(&["analyze", "--json", f.to_str().unwrap()]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(v["summary"]["regions"], 1);
     assert_eq!(v["summary"]["bridges"], 1);
@@ -134,8 +138,16 @@ fn analyze_json_lists_regions() {
     assert_eq!(r["layer"], 51);
     assert!((r["z"].as_f64().unwrap() - 10.2).abs() < 1e-9);
     for key in [
-        "id", "area_mm2", "max_distance_mm", "anchored_length_mm", "anchors", "object", "bbox",
-        "extrusions", "over_air_length_mm", "over_air_filament_mm",
+        "id",
+        "area_mm2",
+        "max_distance_mm",
+        "anchored_length_mm",
+        "anchors",
+        "object",
+        "bbox",
+        "extrusions",
+        "over_air_length_mm",
+        "over_air_filament_mm",
     ] {
         assert!(r.get(key).is_some(), "missing {key}");
     }
@@ -150,7 +162,13 @@ fn analyze_human_output_and_settings() {
     assert!(s.contains("1 region over air on 1 layer"), "{s}");
     assert!(s.contains("overhang"), "{s}");
     // A 10 mm tolerance swallows the overhang's first 10 mm; the rest is still reported.
-    let out = poa(&["analyze", "--json", "--tolerance", "10", f.to_str().unwrap()]);
+    let out = poa(&[
+        "analyze",
+        "--json",
+        "--tolerance",
+        "10",
+        f.to_str().unwrap(),
+    ]);
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let a = v["regions"][0]["area_mm2"].as_f64().unwrap();
     assert!((a - 600.0).abs() < 10.0, "{a}");
@@ -159,4 +177,59 @@ fn analyze_human_output_and_settings() {
         &poa(&["analyze", "--overhang-angle", "95", f.to_str().unwrap()]),
         "angle out of range",
     );
+}
+
+#[test]
+fn preview_draws_a_layer_and_the_regions() {
+    let dir = tempfile::tempdir().unwrap();
+    let f = sample("bridge_prusa_rel.gcode");
+    let svg = dir.path().join("l51.svg");
+    let out = poa(&[
+        "preview",
+        f.to_str().unwrap(),
+        "--layer",
+        "51",
+        "-o",
+        svg.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = std::fs::read_to_string(&svg).unwrap();
+    assert!(text.starts_with("<svg") && text.trim_end().ends_with("</svg>"));
+    assert!(text.contains("#1 bridge 791"), "region label");
+    assert!(
+        text.contains("bridge infill"),
+        "legend lists the roles drawn"
+    );
+    assert!(text.contains("10 mm"), "scale bar");
+    assert_eq!(text.matches("<svg").count(), 1);
+
+    let folder = dir.path().join("regions");
+    let out = poa(&[
+        "preview",
+        f.to_str().unwrap(),
+        "--regions",
+        "-o",
+        folder.to_str().unwrap(),
+    ]);
+    assert!(out.status.success());
+    let index = std::fs::read_to_string(folder.join("index.html")).unwrap();
+    assert!(index.contains("layer-0051.svg"));
+    assert!(index.contains(">bridge<"));
+    assert!(folder.join("layer-0051.svg").is_file());
+
+    let out = poa(&[
+        "preview",
+        f.to_str().unwrap(),
+        "--layer",
+        "500",
+        "-o",
+        svg.to_str().unwrap(),
+    ]);
+    assert_clean_failure(&out, "no such layer");
+    let out = poa(&["preview", f.to_str().unwrap(), "-o", svg.to_str().unwrap()]);
+    assert!(!out.status.success(), "--layer or --regions is required");
 }

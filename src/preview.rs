@@ -1,0 +1,552 @@
+//! Pictures of what poa sees: one SVG per layer.
+//!
+//! Input: a layer, the printed area below it and the layer's regions (from
+//! [`crate::geometry`]). Output: a self-contained SVG drawn in millimetres: the area below in
+//! grey, the layer's strands at their real width coloured by role, the regions outlined and
+//! numbered by kind, a millimetre grid with labels, a scale bar and a legend. For
+//! `poa preview --regions`, an `index.html` lists every region with a link to its layer.
+//!
+//! The picture is G-code's view from above: +Y points up (SVG's Y axis is flipped here).
+
+use std::fmt::Write as _;
+use std::io::{self, BufRead};
+
+use geo::{BoundingRect, LineString, MultiPolygon, Polygon};
+
+use crate::geometry::{self, DetectOptions, Region, RegionKind};
+use crate::layers::{Layer, LayerKind, LayerReader, ReaderOptions, Role, SlicerConfig};
+
+/// What to draw.
+pub struct Scene<'a> {
+    pub title: &'a str,
+    pub layer: &'a Layer,
+    pub below: &'a MultiPolygon<f64>,
+    /// Regions with their file-wide numbers.
+    pub regions: &'a [(usize, &'a Region)],
+}
+
+/// Colour of a role; close to the slicer previews users know.
+pub fn role_color(role: Role) -> &'static str {
+    match role {
+        Role::ExternalPerimeter => "#ff7d38",
+        Role::Perimeter => "#e6c229",
+        Role::OverhangPerimeter => "#1f3fff",
+        Role::Infill => "#b03029",
+        Role::SolidInfill => "#9654cc",
+        Role::TopSolid => "#f04040",
+        Role::BridgeInfill => "#4d80ba",
+        Role::InternalBridge => "#79a7d9",
+        Role::GapFill => "#2e9e5b",
+        Role::Support => "#3cb371",
+        Role::SupportInterface => "#20b2aa",
+        Role::SkirtBrim => "#00876e",
+        Role::WipePrime => "#a3d39c",
+        Role::Custom => "#5ed194",
+        Role::Unknown => "#555555",
+    }
+}
+
+fn region_color(kind: RegionKind) -> &'static str {
+    match kind {
+        RegionKind::Overhang => "#d7191c",
+        RegionKind::Bridge => "#7b1fa2",
+        RegionKind::Floating => "#212121",
+    }
+}
+
+/// Pixels per millimetre of the drawing's nominal size.
+const PX_PER_MM: f64 = 14.0;
+const LEGEND_W: f64 = 46.0;
+
+/// Renders one layer as SVG text.
+pub fn render(scene: &Scene<'_>) -> String {
+    // Drawing bounds: the strands, the area below and the regions.
+    let mut bb = Bounds::default();
+    for p in &scene.layer.paths {
+        for q in &p.points {
+            bb.add(q[0], q[1]);
+        }
+    }
+    for poly in &scene.below.0 {
+        if let Some(r) = poly.bounding_rect() {
+            bb.add(r.min().x, r.min().y);
+            bb.add(r.max().x, r.max().y);
+        }
+    }
+    if bb.empty() {
+        bb.add(0.0, 0.0);
+        bb.add(10.0, 10.0);
+    }
+    let margin = 4.0;
+    let (x0, y0) = ((bb.x0 - margin).floor(), (bb.y0 - margin).floor());
+    let (x1, y1) = ((bb.x1 + margin).ceil(), (bb.y1 + margin).ceil());
+    let (w, h) = (x1 - x0, y1 - y0);
+    let header = 9.0;
+    let footer = 4.0;
+    let total_w = w + LEGEND_W;
+    let total_h = (h + header + footer).max(legend_height(scene) + header);
+    // Map G-code (x, y) to SVG: y flipped, drawing below the header.
+    let tx = |x: f64| x - x0;
+    let ty = |y: f64| header + (y1 - y);
+    let font = (w.max(h) / 70.0).clamp(1.2, 3.0);
+
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{:.0}" height="{:.0}" viewBox="0 0 {total_w:.3} {total_h:.3}" font-family="Helvetica, Arial, sans-serif">"#,
+        total_w * PX_PER_MM,
+        total_h * PX_PER_MM
+    );
+    let _ = writeln!(
+        s,
+        r#"<rect x="0" y="0" width="{total_w:.3}" height="{total_h:.3}" fill="white"/>"#
+    );
+    let _ = writeln!(
+        s,
+        r#"<text x="1" y="{:.2}" font-size="{:.2}" font-weight="bold">{}</text>"#,
+        header * 0.45,
+        (header * 0.32).min(3.2),
+        escape(scene.title)
+    );
+    let _ = writeln!(
+        s,
+        r##"<text x="1" y="{:.2}" font-size="{:.2}" fill="#444">layer {} at Z {:.2} mm, {:.2} mm high; {} region{} over air</text>"##,
+        header * 0.85,
+        (header * 0.24).min(2.4),
+        scene.layer.index + 1,
+        scene.layer.z,
+        scene.layer.height,
+        scene.regions.len(),
+        if scene.regions.len() == 1 { "" } else { "s" }
+    );
+
+    // Millimetre grid: fine lines every mm when there is room, strong every 10 mm, labelled.
+    let fine = w.max(h) <= 120.0;
+    let mut grid = String::new();
+    let mut x = x0.ceil();
+    while x <= x1 {
+        let strong = (x.rem_euclid(10.0)).abs() < 1e-9;
+        if strong || fine {
+            let _ = write!(
+                grid,
+                r#"<line x1="{:.3}" y1="{:.3}" x2="{:.3}" y2="{:.3}" stroke="{}" stroke-width="{}"/>"#,
+                tx(x),
+                ty(y0),
+                tx(x),
+                ty(y1),
+                if strong { "#c8c8c8" } else { "#eeeeee" },
+                if strong { 0.08 } else { 0.04 }
+            );
+        }
+        if strong {
+            let _ = write!(
+                grid,
+                r##"<text x="{:.3}" y="{:.3}" font-size="{:.2}" fill="#888" text-anchor="middle">{x:.0}</text>"##,
+                tx(x),
+                ty(y0) - 0.4,
+                font * 0.7
+            );
+        }
+        x += 1.0;
+    }
+    let mut y = y0.ceil();
+    while y <= y1 {
+        let strong = (y.rem_euclid(10.0)).abs() < 1e-9;
+        if strong || fine {
+            let _ = write!(
+                grid,
+                r#"<line x1="{:.3}" y1="{:.3}" x2="{:.3}" y2="{:.3}" stroke="{}" stroke-width="{}"/>"#,
+                tx(x0),
+                ty(y),
+                tx(x1),
+                ty(y),
+                if strong { "#c8c8c8" } else { "#eeeeee" },
+                if strong { 0.08 } else { 0.04 }
+            );
+        }
+        if strong {
+            let _ = write!(
+                grid,
+                r##"<text x="{:.3}" y="{:.3}" font-size="{:.2}" fill="#888">{y:.0}</text>"##,
+                tx(x0) + 0.3,
+                ty(y) - 0.3,
+                font * 0.7
+            );
+        }
+        y += 1.0;
+    }
+    let _ = writeln!(s, "<g>{grid}</g>");
+
+    // The area printed below.
+    let _ = writeln!(
+        s,
+        r##"<path d="{}" fill="#bdbdbd" fill-opacity="0.55" stroke="#8a8a8a" stroke-width="0.1" fill-rule="evenodd"/>"##,
+        multipolygon_path(scene.below, &tx, &ty)
+    );
+
+    // Strands at their width, by role.
+    let _ = writeln!(
+        s,
+        r#"<g fill="none" stroke-linecap="round" stroke-linejoin="round" stroke-opacity="0.9">"#
+    );
+    for p in &scene.layer.paths {
+        if p.points.len() < 2 {
+            continue;
+        }
+        let mut d = String::new();
+        for (i, q) in p.points.iter().enumerate() {
+            let _ = write!(
+                d,
+                "{}{:.3} {:.3}",
+                if i == 0 { "M" } else { " L" },
+                tx(q[0]),
+                ty(q[1])
+            );
+        }
+        let _ = writeln!(
+            s,
+            r#"<path d="{d}" stroke="{}" stroke-width="{:.3}"/>"#,
+            role_color(p.role),
+            p.width.clamp(0.05, 5.0)
+        );
+    }
+    let _ = writeln!(s, "</g>");
+
+    // Regions: tinted, outlined, numbered.
+    for (id, r) in scene.regions {
+        let c = region_color(r.kind);
+        let d = polygon_path(&r.polygon, &tx, &ty);
+        let _ = writeln!(
+            s,
+            r#"<path d="{d}" fill="{c}" fill-opacity="0.16" stroke="{c}" stroke-width="0.35" stroke-dasharray="1.2 0.6" fill-rule="evenodd"/>"#
+        );
+        if let Some(b) = r.polygon.bounding_rect() {
+            let (lx, ly) = (tx(b.min().x) + 0.5, ty(b.max().y) + font * 1.3);
+            let _ = writeln!(
+                s,
+                r#"<text x="{lx:.3}" y="{ly:.3}" font-size="{:.2}" font-weight="bold" fill="{c}" stroke="white" stroke-width="{:.2}" paint-order="stroke">#{id} {} {:.0} mm²</text>"#,
+                font * 1.1,
+                font * 0.25,
+                r.kind.name(),
+                r.area
+            );
+        }
+    }
+
+    // Scale bar: 10 mm (or 1 mm on tiny parts), bottom left.
+    let bar = if w >= 25.0 { 10.0 } else { 1.0 };
+    let (bx, by) = (tx(x0) + 1.0, ty(y0) + footer * 0.45);
+    let _ = writeln!(
+        s,
+        r#"<g><rect x="{bx:.3}" y="{by:.3}" width="{bar}" height="0.5" fill="black"/><text x="{:.3}" y="{:.3}" font-size="{:.2}">{bar:.0} mm</text></g>"#,
+        bx + bar + 0.6,
+        by + 0.5,
+        font * 0.8
+    );
+
+    legend(&mut s, scene, w + 1.0, header);
+    s.push_str("</svg>\n");
+    s
+}
+
+fn legend_height(scene: &Scene<'_>) -> f64 {
+    let roles = roles_present(scene).len() as f64;
+    12.0 + 3.0 * (roles + 4.0)
+}
+
+fn roles_present(scene: &Scene<'_>) -> Vec<Role> {
+    let mut v: Vec<Role> = scene.layer.paths.iter().map(|p| p.role).collect();
+    v.sort();
+    v.dedup();
+    v
+}
+
+fn legend(s: &mut String, scene: &Scene<'_>, x: f64, top: f64) {
+    let mut y = top + 2.0;
+    let line = 3.0;
+    let fs = 1.9;
+    let _ = writeln!(s, r#"<g font-size="{fs}">"#);
+    let _ = writeln!(
+        s,
+        r#"<text x="{x:.2}" y="{y:.2}" font-weight="bold">Legend</text>"#
+    );
+    y += line;
+    let _ = writeln!(
+        s,
+        r##"<rect x="{x:.2}" y="{:.2}" width="4" height="2" fill="#bdbdbd" fill-opacity="0.55" stroke="#8a8a8a" stroke-width="0.1"/><text x="{:.2}" y="{y:.2}">printed by the layer below</text>"##,
+        y - 1.6,
+        x + 5.0
+    );
+    for kind in [
+        RegionKind::Overhang,
+        RegionKind::Bridge,
+        RegionKind::Floating,
+    ] {
+        y += line;
+        let c = region_color(kind);
+        let _ = writeln!(
+            s,
+            r#"<rect x="{x:.2}" y="{:.2}" width="4" height="2" fill="{c}" fill-opacity="0.16" stroke="{c}" stroke-width="0.3" stroke-dasharray="1 0.5"/><text x="{:.2}" y="{y:.2}">{} region (over air)</text>"#,
+            y - 1.6,
+            x + 5.0,
+            kind.name()
+        );
+    }
+    y += line * 0.7;
+    for role in roles_present(scene) {
+        y += line;
+        let _ = writeln!(
+            s,
+            r#"<line x1="{x:.2}" y1="{:.2}" x2="{:.2}" y2="{:.2}" stroke="{}" stroke-width="0.9" stroke-linecap="round"/><text x="{:.2}" y="{y:.2}">{}</text>"#,
+            y - 0.6,
+            x + 4.0,
+            y - 0.6,
+            role_color(role),
+            x + 5.0,
+            role.name()
+        );
+    }
+    let _ = writeln!(s, "</g>");
+}
+
+#[derive(Default)]
+struct Bounds {
+    x0: f64,
+    y0: f64,
+    x1: f64,
+    y1: f64,
+    n: usize,
+}
+
+impl Bounds {
+    fn add(&mut self, x: f64, y: f64) {
+        if !(x.is_finite() && y.is_finite()) {
+            return;
+        }
+        if self.n == 0 {
+            (self.x0, self.y0, self.x1, self.y1) = (x, y, x, y);
+        } else {
+            self.x0 = self.x0.min(x);
+            self.y0 = self.y0.min(y);
+            self.x1 = self.x1.max(x);
+            self.y1 = self.y1.max(y);
+        }
+        self.n += 1;
+    }
+
+    fn empty(&self) -> bool {
+        self.n == 0
+    }
+}
+
+fn ring_path(ring: &LineString<f64>, tx: &dyn Fn(f64) -> f64, ty: &dyn Fn(f64) -> f64) -> String {
+    let mut d = String::new();
+    for (i, c) in ring.0.iter().enumerate() {
+        let _ = write!(
+            d,
+            "{}{:.3} {:.3}",
+            if i == 0 { "M" } else { " L" },
+            tx(c.x),
+            ty(c.y)
+        );
+    }
+    d.push_str(" Z");
+    d
+}
+
+fn polygon_path(p: &Polygon<f64>, tx: &dyn Fn(f64) -> f64, ty: &dyn Fn(f64) -> f64) -> String {
+    let mut d = ring_path(p.exterior(), tx, ty);
+    for h in p.interiors() {
+        d.push(' ');
+        d.push_str(&ring_path(h, tx, ty));
+    }
+    d
+}
+
+fn multipolygon_path(
+    mp: &MultiPolygon<f64>,
+    tx: &dyn Fn(f64) -> f64,
+    ty: &dyn Fn(f64) -> f64,
+) -> String {
+    mp.0.iter()
+        .map(|p| polygon_path(p, tx, ty))
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+/// Escapes text for XML and HTML.
+pub fn escape(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
+}
+
+/// One row of the regions index.
+pub struct IndexRow {
+    pub id: usize,
+    pub layer: usize,
+    pub z: f64,
+    pub kind: RegionKind,
+    pub area: f64,
+    pub reach: f64,
+    pub svg: String,
+}
+
+/// The `index.html` of `poa preview --regions`.
+pub fn index_html(title: &str, rows: &[IndexRow]) -> String {
+    let layers = rows
+        .iter()
+        .map(|r| r.layer)
+        .collect::<std::collections::BTreeSet<_>>()
+        .len();
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "<!doctype html>\n<html><head><meta charset=\"utf-8\"><title>poa: {t}</title>\n<style>body{{font-family:Helvetica,Arial,sans-serif;margin:2em}}table{{border-collapse:collapse}}td,th{{padding:4px 10px;border-bottom:1px solid #ddd;text-align:right}}th{{background:#f4f4f4}}td.k{{text-align:left}}img{{max-width:100%;border:1px solid #ccc;margin:1em 0}}</style></head><body>\n<h1>Regions over air: {t}</h1>\n<p>{} region{} on {} layer{}. Click a row to see its layer.</p>",
+        rows.len(),
+        if rows.len() == 1 { "" } else { "s" },
+        layers,
+        if layers == 1 { "" } else { "s" },
+        t = escape(title)
+    );
+    s.push_str("<table><tr><th>#</th><th>layer</th><th>Z mm</th><th>kind</th><th>area mm²</th><th>reach mm</th></tr>\n");
+    for r in rows {
+        let _ = writeln!(
+            s,
+            "<tr><td><a href=\"{svg}\">{}</a></td><td>{}</td><td>{:.2}</td><td class=\"k\">{}</td><td>{:.1}</td><td>{:.1}</td></tr>",
+            r.id,
+            r.layer,
+            r.z,
+            r.kind.name(),
+            r.area,
+            r.reach,
+            svg = escape(&r.svg)
+        );
+    }
+    s.push_str("</table>\n");
+    let mut seen = Vec::new();
+    for r in rows {
+        if seen.contains(&r.svg) {
+            continue;
+        }
+        seen.push(r.svg.clone());
+        let _ = writeln!(
+            s,
+            "<h2 id=\"layer-{l}\">Layer {l}</h2>\n<img src=\"{svg}\" alt=\"layer {l}\">",
+            l = r.layer,
+            svg = escape(&r.svg)
+        );
+    }
+    s.push_str("</body></html>\n");
+    s
+}
+
+/// Pictures of a whole file.
+pub struct Previews {
+    /// (file name, SVG text) for each layer with regions, in layer order.
+    pub layers: Vec<(String, String)>,
+    pub index: String,
+}
+
+/// Reads `input` and renders layer `number` (1-based). `None` when the file has no such layer.
+pub fn preview_layer<R: BufRead>(
+    input: R,
+    config: SlicerConfig,
+    opts: &DetectOptions,
+    number: usize,
+    title: &str,
+) -> io::Result<Option<String>> {
+    let mut svg = None;
+    let mut region_id = 0;
+    let reader = LayerReader::new(
+        input,
+        ReaderOptions {
+            keep_raw: false,
+            config,
+        },
+    );
+    // Stop reading once the layer is drawn: the rest of the file does not matter.
+    let stop = io::Error::other("done");
+    let result = geometry::detect(reader, opts, |d| {
+        if d.layer.kind != LayerKind::Layer {
+            return Ok(());
+        }
+        if d.layer.index + 1 == number {
+            let numbered: Vec<(usize, &Region)> = d
+                .regions
+                .iter()
+                .enumerate()
+                .map(|(i, r)| (region_id + i + 1, r))
+                .collect();
+            svg = Some(render(&Scene {
+                title,
+                layer: &d.layer,
+                below: &d.below,
+                regions: &numbered,
+            }));
+            return Err(io::Error::other("done"));
+        }
+        region_id += d.regions.len();
+        Ok(())
+    });
+    match result {
+        Err(e) if svg.is_some() && e.to_string() == stop.to_string() => Ok(svg),
+        Err(e) => Err(e),
+        Ok(()) => Ok(svg),
+    }
+}
+
+/// Reads `input` and renders every layer that has regions, plus an index.
+pub fn preview_regions<R: BufRead>(
+    input: R,
+    config: SlicerConfig,
+    opts: &DetectOptions,
+    title: &str,
+) -> io::Result<Previews> {
+    let mut layers = Vec::new();
+    let mut rows = Vec::new();
+    let reader = LayerReader::new(
+        input,
+        ReaderOptions {
+            keep_raw: false,
+            config,
+        },
+    );
+    geometry::detect(reader, opts, |d| {
+        if d.regions.is_empty() {
+            return Ok(());
+        }
+        let first = rows.len();
+        let name = format!("layer-{:04}.svg", d.layer.index + 1);
+        let numbered: Vec<(usize, &Region)> = d
+            .regions
+            .iter()
+            .enumerate()
+            .map(|(i, r)| (first + i + 1, r))
+            .collect();
+        let svg = render(&Scene {
+            title,
+            layer: &d.layer,
+            below: &d.below,
+            regions: &numbered,
+        });
+        for (id, r) in &numbered {
+            rows.push(IndexRow {
+                id: *id,
+                layer: d.layer.index + 1,
+                z: r.z,
+                kind: r.kind,
+                area: r.area,
+                reach: r.max_distance,
+                svg: name.clone(),
+            });
+        }
+        layers.push((name, svg));
+        Ok(())
+    })?;
+    Ok(Previews {
+        layers,
+        index: index_html(title, &rows),
+    })
+}
