@@ -112,11 +112,32 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     match run(cli) {
         Ok(code) => code,
+        // A reader that stopped early (`poa analyze x | head`) is not an error.
+        Err(e)
+            if e.downcast_ref::<std::io::Error>()
+                .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe) =>
+        {
+            ExitCode::SUCCESS
+        }
         Err(e) => {
             eprintln!("poa: {e:#}");
             ExitCode::from(1)
         }
     }
+}
+
+/// Writes a report to stdout, as text or JSON.
+fn emit<T: serde::Serialize + std::fmt::Display>(report: &T, json: bool) -> anyhow::Result<()> {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    if json {
+        serde_json::to_writer_pretty(&mut out, report).map_err(std::io::Error::from)?;
+        writeln!(out)?;
+    } else {
+        write!(out, "{report}")?;
+    }
+    out.flush()?;
+    Ok(())
 }
 
 fn run(cli: Cli) -> anyhow::Result<ExitCode> {
@@ -126,11 +147,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             let name = file.display().to_string();
             let rep = report::info(opened.reader, opened.config, &name)
                 .map_err(|source| printonair::Error::Read { path: file, source })?;
-            if json {
-                println!("{}", serde_json::to_string_pretty(&rep)?);
-            } else {
-                print!("{rep}");
-            }
+            emit(&rep, json)?;
             Ok(ExitCode::SUCCESS)
         }
         Command::Analyze { file, json, detect } => {
@@ -139,11 +156,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             let name = file.display().to_string();
             let rep = report::analyze(opened.reader, opened.config, &opts, &name)
                 .map_err(|source| printonair::Error::Read { path: file, source })?;
-            if json {
-                println!("{}", serde_json::to_string_pretty(&rep)?);
-            } else {
-                print!("{rep}");
-            }
+            emit(&rep, json)?;
             Ok(ExitCode::SUCCESS)
         }
         Command::Preview {

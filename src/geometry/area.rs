@@ -90,6 +90,34 @@ fn supports(role: Role) -> bool {
     role.is_part() || matches!(role, Role::Support | Role::SupportInterface)
 }
 
+/// Roles printed inside a part's perimeters: evidence of what the perimeters enclose.
+fn interior(role: Role) -> bool {
+    matches!(
+        role,
+        Role::Infill
+            | Role::SolidInfill
+            | Role::TopSolid
+            | Role::BridgeInfill
+            | Role::InternalBridge
+    )
+}
+
+/// Midpoints of the segments of the paths `keep` selects, sorted by x for range queries.
+fn midpoints(layer: &Layer, keep: impl Fn(Role) -> bool) -> Vec<[f64; 2]> {
+    let mut v: Vec<[f64; 2]> = layer
+        .paths
+        .iter()
+        .filter(|p| keep(p.role))
+        .flat_map(|p| {
+            p.points
+                .windows(2)
+                .map(|w| [(w[0][0] + w[1][0]) / 2.0, (w[0][1] + w[1][1]) / 2.0])
+        })
+        .collect();
+    v.sort_by(|a, b| a[0].total_cmp(&b[0]));
+    v
+}
+
 /// The area a layer covers for the layer above, holes that are infill gaps closed.
 pub fn printed_area(layer: &Layer, opts: &AreaOptions) -> MultiPolygon<f64> {
     let walls: Vec<&Path> = layer
@@ -98,51 +126,91 @@ pub fn printed_area(layer: &Layer, opts: &AreaOptions) -> MultiPolygon<f64> {
         .filter(|p| matches!(p.role, Role::ExternalPerimeter | Role::OverhangPerimeter))
         .collect();
     let walls_known = walls.iter().any(|p| p.role == Role::ExternalPerimeter);
-    let infill: Vec<[f64; 2]> = layer
-        .paths
-        .iter()
-        .filter(|p| p.role == Role::Infill)
-        .flat_map(|p| {
-            p.points
-                .windows(2)
-                .map(|w| [(w[0][0] + w[1][0]) / 2.0, (w[0][1] + w[1][1]) / 2.0])
-        })
-        .collect();
-    let infill_known = !infill.is_empty();
-    let strands = layer
-        .paths
-        .iter()
-        .filter(|p| supports(p.role) && !(infill_known && p.role == Role::Infill));
-    let fp = footprint(strands);
-    if walls_known || infill_known {
-        let wall_fp = if walls_known {
-            wall_zone(&walls)
+    if walls_known {
+        // Perimeters and the other strands outline the part; what infill fills is closed in
+        // by hole filling instead of being buffered strand by strand (the costly part).
+        let inside = midpoints(layer, interior);
+        let fp = footprint(
+            layer
+                .paths
+                .iter()
+                .filter(|p| supports(p.role) && !interior(p.role)),
+        );
+        let wall_fp = wall_zone(&walls);
+        let area = close_holes(fp, |hole| {
+            contains_any(hole, &inside)
+                || !walled_by(hole, &wall_fp)
+                || hole_width_below(hole, opts.min_hole)
+        });
+        // Infill the perimeters do not enclose (a slicer setting without perimeters somewhere)
+        // still holds up the layer above.
+        let stray: Vec<&Path> = layer
+            .paths
+            .iter()
+            .filter(|p| interior(p.role) && !path_inside(p, &area))
+            .collect();
+        if stray.is_empty() {
+            area
         } else {
-            MultiPolygon::new(Vec::new())
-        };
+            BooleanOps::union(&area, &footprint(stray))
+        }
+    } else if layer.paths.iter().any(|p| p.role == Role::Infill) {
+        // Sparse infill tagged, external perimeters not told apart (Slic3r).
+        let infill = midpoints(layer, |r| r == Role::Infill);
+        let fp = footprint(
+            layer
+                .paths
+                .iter()
+                .filter(|p| supports(p.role) && p.role != Role::Infill),
+        );
         close_holes(fp, |hole| {
-            hole_width_below(hole, opts.min_hole)
-                || contains_any(hole, &infill)
-                || (walls_known && !walled_by(hole, &wall_fp))
+            contains_any(hole, &infill) || hole_width_below(hole, opts.min_hole)
         })
     } else {
+        let fp = footprint(layer.paths.iter().filter(|p| supports(p.role)));
         close_holes(fp, |hole| hole_width_below(hole, opts.gap_close))
     }
 }
 
-/// Whether any of `points` lies inside the ring.
+/// Whether a path's first, middle and last points lie in `area`.
+fn path_inside(p: &Path, area: &MultiPolygon<f64>) -> bool {
+    let n = p.points.len();
+    if n == 0 {
+        return true;
+    }
+    [p.points[0], p.points[n / 2], p.points[n - 1]]
+        .iter()
+        .all(|q| point_in(area, q[0], q[1]))
+}
+
+/// Point in a polygon set, with a bounding-box test first.
+fn point_in(area: &MultiPolygon<f64>, x: f64, y: f64) -> bool {
+    let pt = Point::new(x, y);
+    area.0.iter().any(|poly| {
+        poly.bounding_rect()
+            .is_some_and(|b| x >= b.min().x && x <= b.max().x && y >= b.min().y && y <= b.max().y)
+            && poly.contains(&pt)
+    })
+}
+
+/// Whether any of `points` (sorted by x) lies inside the ring.
 fn contains_any(hole: &LineString<f64>, points: &[[f64; 2]]) -> bool {
     let Some(bb) = hole.bounding_rect() else {
         return false;
     };
+    let from = points.partition_point(|p| p[0] < bb.min().x);
+    let to = points.partition_point(|p| p[0] <= bb.max().x);
+    let candidates = &points[from..to.max(from)];
+    if !candidates
+        .iter()
+        .any(|p| p[1] >= bb.min().y && p[1] <= bb.max().y)
+    {
+        return false;
+    }
     let poly = Polygon::new(hole.clone(), Vec::new());
-    points.iter().any(|p| {
-        p[0] >= bb.min().x
-            && p[0] <= bb.max().x
-            && p[1] >= bb.min().y
-            && p[1] <= bb.max().y
-            && poly.contains(&Point::new(p[0], p[1]))
-    })
+    candidates
+        .iter()
+        .any(|p| p[1] >= bb.min().y && p[1] <= bb.max().y && poly.contains(&Point::new(p[0], p[1])))
 }
 
 /// Where an external perimeter's inner edge can be: its footprint grown by a margin.
@@ -156,7 +224,7 @@ fn walled_by(hole: &LineString<f64>, walls: &MultiPolygon<f64>) -> bool {
     let n = hole.0.len().saturating_sub(1).max(1);
     let on_wall = hole.0[..n]
         .iter()
-        .filter(|c| walls.contains(&Point::from(**c)))
+        .filter(|c| point_in(walls, c.x, c.y))
         .count();
     on_wall * 2 >= n
 }

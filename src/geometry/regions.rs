@@ -242,12 +242,24 @@ fn max_distance(polygon: &Polygon<f64>, below: &MultiPolygon<f64>) -> f64 {
     if below.0.is_empty() {
         return f64::INFINITY;
     }
+    let boxes: Vec<_> = below
+        .0
+        .iter()
+        .filter_map(|q| q.bounding_rect().map(|b| (b, q)))
+        .collect();
+    // Nearest polygon first by bounding box; a box farther than the best distance so far
+    // cannot hold anything nearer.
     let dist = |p: &Point<f64>| {
-        below
-            .0
-            .iter()
-            .map(|q| Euclidean.distance(p, q))
-            .fold(f64::INFINITY, f64::min)
+        let mut best = f64::INFINITY;
+        for (b, q) in &boxes {
+            let dx = (b.min().x - p.x()).max(p.x() - b.max().x).max(0.0);
+            let dy = (b.min().y - p.y()).max(p.y() - b.max().y).max(0.0);
+            if (dx * dx + dy * dy).sqrt() >= best {
+                continue;
+            }
+            best = best.min(Euclidean.distance(p, *q));
+        }
+        best
     };
     let mut best: f64 = 0.0;
     for c in polygon.exterior().0.iter() {
