@@ -19,6 +19,8 @@ pub const READ_BUFFER: usize = 256 * 1024;
 
 pub struct Opened {
     pub reader: BufReader<File>,
+    /// The first bytes of the file (up to 64 KiB).
+    pub head: Vec<u8>,
     pub config: SlicerConfig,
     pub size: u64,
 }
@@ -53,6 +55,7 @@ pub fn open(path: &Path) -> Result<Opened> {
     file.seek(SeekFrom::Start(0)).map_err(read_err)?;
     Ok(Opened {
         reader: BufReader::with_capacity(READ_BUFFER, file),
+        head,
         config,
         size,
     })

@@ -6,12 +6,16 @@
 //! [`preview`] (what a user reads and sees). The binary `poa` only parses
 //! arguments, does file I/O and maps errors to exit codes.
 
+pub mod check;
+pub mod emit;
 pub mod error;
 pub mod gcode;
 pub mod geometry;
 pub mod input;
 pub mod layers;
 pub mod machine;
+pub mod output;
+pub mod poa;
 pub mod preview;
 pub mod report;
 

@@ -209,6 +209,10 @@ pub struct Machine {
     pub diagnostics: Diagnostics,
     /// Seen G20 at least once.
     pub inches_seen: bool,
+    /// Filament pulled back by E moves and not yet pushed again (mm).
+    pub retracted: f64,
+    /// G10 in force.
+    pub firmware_retracted: bool,
 }
 
 impl Default for Machine {
@@ -227,6 +231,8 @@ impl Default for Machine {
             e_modes: EModes::default(),
             diagnostics: Diagnostics::default(),
             inches_seen: false,
+            retracted: 0.0,
+            firmware_retracted: false,
         }
     }
 }
@@ -259,6 +265,34 @@ impl Machine {
 
     /// Interprets one parsed line.
     pub fn step(&mut self, p: &Parsed<'_>, line: u64) -> Action {
+        let action = self.interpret(p, line);
+        match &action {
+            Action::Move(m) if !m.is_extrusion() && m.e != 0.0 => {
+                // Retraction (also while wiping) and the push back that undoes it.
+                self.retracted = (self.retracted - m.e).max(0.0);
+            }
+            Action::FirmwareRetract => self.firmware_retracted = true,
+            Action::FirmwareUnretract => self.firmware_retracted = false,
+            _ => {}
+        }
+        action
+    }
+
+    /// A copy of the modal state without the diagnostics gathered so far: what a later stage
+    /// needs to re-interpret a stretch of lines from here.
+    pub fn snapshot(&self) -> Machine {
+        Machine {
+            diagnostics: Diagnostics::default(),
+            ..*self
+        }
+    }
+
+    /// Whether the nozzle is primed (not retracted): where an extrusion may start.
+    pub fn is_retracted(&self) -> bool {
+        self.firmware_retracted || self.retracted > 1e-3
+    }
+
+    fn interpret(&mut self, p: &Parsed<'_>, line: u64) -> Action {
         let (letter, code) = match p.command {
             // Sub-codes such as `G29.1` are not motion or mode commands we interpret.
             Command::Code { letter, number }

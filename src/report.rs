@@ -12,6 +12,7 @@ use serde::Serialize;
 
 use geo::BoundingRect;
 
+use crate::check::{CheckOptions, LayerCheck};
 use crate::geometry::{self, DetectOptions, Region, RegionKind, RoleExtrusion, Tolerance};
 use crate::layers::{
     filament_area, LayerKind, LayerReader, LayerSource, ReaderOptions, Role, SlicerConfig,
@@ -462,5 +463,123 @@ fn plural(n: usize) -> &'static str {
         ""
     } else {
         "s"
+    }
+}
+
+/// `poa check`: how much of each layer is laid on material that already exists.
+#[derive(Debug, Clone, Serialize)]
+pub struct CheckReport {
+    pub file: String,
+    pub options: CheckOptions,
+    pub length_mm: f64,
+    pub supported_mm: f64,
+    pub bridged_mm: f64,
+    pub in_air_mm: f64,
+    pub longest_in_air_mm: f64,
+    /// Layer number, [x, y] and line of the longest in-air run.
+    pub longest_in_air_at: Option<(usize, [f64; 2], u64)>,
+    pub layers: Vec<LayerCheck>,
+}
+
+/// Simulates the deposition of a whole file, layer by layer.
+pub fn check<R: BufRead>(
+    input: R,
+    config: SlicerConfig,
+    opts: &CheckOptions,
+    file: &str,
+) -> std::io::Result<CheckReport> {
+    let fa = filament_area(config.filament_diameter());
+    let reader = LayerReader::new(
+        input,
+        ReaderOptions {
+            keep_raw: false,
+            config,
+        },
+    );
+    let mut rep = CheckReport {
+        file: file.to_string(),
+        options: opts.clone(),
+        length_mm: 0.0,
+        supported_mm: 0.0,
+        bridged_mm: 0.0,
+        in_air_mm: 0.0,
+        longest_in_air_mm: 0.0,
+        longest_in_air_at: None,
+        layers: Vec::new(),
+    };
+    let mut below: Option<crate::layers::Layer> = None;
+    for layer in reader {
+        let layer = layer?;
+        if layer.kind != LayerKind::Layer {
+            continue;
+        }
+        let c = crate::check::check_layer(below.as_ref(), &layer, fa, opts, false);
+        rep.length_mm += c.length_mm;
+        rep.supported_mm += c.supported_mm;
+        rep.bridged_mm += c.bridged_mm;
+        rep.in_air_mm += c.in_air_mm;
+        if c.longest_in_air_mm > rep.longest_in_air_mm {
+            rep.longest_in_air_mm = c.longest_in_air_mm;
+            rep.longest_in_air_at = c.longest_in_air_at.map(|(p, l)| (c.layer, p, l));
+        }
+        rep.layers.push(c);
+        below = Some(layer);
+    }
+    Ok(rep)
+}
+
+impl fmt::Display for CheckReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let pct = |x: f64| {
+            if self.length_mm > 0.0 {
+                100.0 * x / self.length_mm
+            } else {
+                0.0
+            }
+        };
+        writeln!(f, "{}", self.file)?;
+        writeln!(
+            f,
+            "  extruded {:.0} mm: supported {:.2} %, bridged {:.2} %, in air {:.2} % ({:.1} mm)",
+            self.length_mm,
+            pct(self.supported_mm),
+            pct(self.bridged_mm),
+            pct(self.in_air_mm),
+            self.in_air_mm
+        )?;
+        if let Some((layer, p, line)) = self.longest_in_air_at {
+            writeln!(
+                f,
+                "  longest in-air run: {:.1} mm on layer {layer} at X{:.2} Y{:.2} (line {line})",
+                self.longest_in_air_mm, p[0], p[1]
+            )?;
+        }
+        writeln!(f)?;
+        writeln!(
+            f,
+            "  {:>5} {:>7} {:>10} {:>9} {:>9} {:>9} {:>8}",
+            "layer", "Z mm", "length mm", "bridged", "in air", "longest", "density"
+        )?;
+        for l in &self.layers {
+            if l.in_air_mm < 0.05 && l.bridged_mm < 0.05 && (0.8..=1.3).contains(&l.density) {
+                continue;
+            }
+            writeln!(
+                f,
+                "  {:>5} {:>7.2} {:>10.0} {:>9.1} {:>9.1} {:>9.1} {:>8.2}",
+                l.layer,
+                l.z,
+                l.length_mm,
+                l.bridged_mm,
+                l.in_air_mm,
+                l.longest_in_air_mm,
+                l.density
+            )?;
+        }
+        writeln!(
+            f,
+            "  (layers fully supported with density 0.8-1.3 not listed)"
+        )?;
+        Ok(())
     }
 }

@@ -48,6 +48,56 @@ pub fn opening(mp: &MultiPolygon<f64>, r: f64) -> MultiPolygon<f64> {
     offset(&offset(mp, -r), r)
 }
 
+/// A polyline in mm.
+pub type Polyline = Vec<[f64; 2]>;
+
+/// The parts of `lines` inside `area` (or outside it, with `inside` false).
+pub fn clip_lines(lines: &[Polyline], area: &MultiPolygon<f64>, inside: bool) -> Vec<Polyline> {
+    use geo::{BooleanOps, LineString, MultiLineString};
+    let mls = MultiLineString::new(
+        lines
+            .iter()
+            .filter(|l| l.len() >= 2)
+            .map(|l| LineString::from(l.iter().map(|p| (p[0], p[1])).collect::<Vec<_>>()))
+            .collect(),
+    );
+    if mls.0.is_empty() {
+        return Vec::new();
+    }
+    if area.0.is_empty() {
+        return if inside { Vec::new() } else { lines.to_vec() };
+    }
+    area.clip(&mls, !inside)
+        .0
+        .into_iter()
+        .map(|ls| ls.0.into_iter().map(|c| [c.x, c.y]).collect::<Polyline>())
+        .filter(|l| l.len() >= 2)
+        .collect()
+}
+
+/// Every ring (exteriors and holes) of a polygon set as a closed polyline.
+pub fn rings(mp: &MultiPolygon<f64>) -> Vec<Polyline> {
+    mp.0.iter()
+        .flat_map(|p| std::iter::once(p.exterior()).chain(p.interiors()))
+        .map(|r| r.0.iter().map(|c| [c.x, c.y]).collect::<Polyline>())
+        .filter(|r| r.len() >= 3)
+        .collect()
+}
+
+pub fn difference(a: &MultiPolygon<f64>, b: &MultiPolygon<f64>) -> MultiPolygon<f64> {
+    if a.0.is_empty() || b.0.is_empty() {
+        return a.clone();
+    }
+    geo::BooleanOps::difference(a, b)
+}
+
+pub fn intersection(a: &MultiPolygon<f64>, b: &MultiPolygon<f64>) -> MultiPolygon<f64> {
+    if a.0.is_empty() || b.0.is_empty() {
+        return MultiPolygon::new(Vec::new());
+    }
+    geo::BooleanOps::intersection(a, b)
+}
+
 /// A polygon's exterior as a polygon without holes.
 pub fn exterior_only(p: &Polygon<f64>) -> Polygon<f64> {
     Polygon::new(p.exterior().clone(), Vec::new())

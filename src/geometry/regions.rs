@@ -378,6 +378,8 @@ mod tests {
             first_line: 1,
             last_line: 1,
             raw: Vec::new(),
+            start: None,
+            objects: None,
         }
     }
 

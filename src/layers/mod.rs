@@ -118,6 +118,11 @@ pub struct Layer {
     pub last_line: u64,
     /// The exact bytes of the block's lines when `keep_raw` is on, else empty.
     pub raw: Vec<u8>,
+    /// The interpreter's state before the block's first line, when `keep_raw` is on.
+    pub start: Option<Box<Machine>>,
+    /// All object names known so far (indexed by [`Path::object`]) when a name was added or
+    /// changed while reading this block; `None` when unchanged.
+    pub objects: Option<Vec<String>>,
 }
 
 impl Layer {
@@ -157,6 +162,7 @@ struct Builder {
     last_line: u64,
     raw: Vec<u8>,
     paths: Vec<Path>,
+    start: Option<Box<Machine>>,
 }
 
 impl Builder {
@@ -171,6 +177,7 @@ impl Builder {
             last_line: first_line.wrapping_sub(1),
             raw: Vec::new(),
             paths: Vec::new(),
+            start: None,
         }
     }
 }
@@ -208,6 +215,7 @@ struct State {
     objects: Vec<String>,
     /// What identifies each object in the file (label text, M486 id).
     object_keys: Vec<String>,
+    objects_changed: bool,
     diagnostics: Diagnostics,
     marker_kind: Option<MarkerKind>,
     markers_promised: bool,
@@ -219,13 +227,16 @@ struct State {
     in_config: bool,
     cur: Builder,
     open_path: Option<Path>,
-    /// (raw offset, line) of the first Z change since the last extrusion.
-    z_change: Option<(usize, u64)>,
+    /// (raw offset, line, interpreter state before it) of the first Z change since the last
+    /// extrusion.
+    z_change: Option<(usize, u64, Option<Box<Machine>>)>,
     held: Vec<Layer>,
     ready: VecDeque<Layer>,
     next_index: usize,
     prev_layer_z: f64,
     last_height: f64,
+    /// The interpreter's state before the line being handled (kept only with `keep_raw`).
+    before_line: Machine,
 }
 
 impl<R: BufRead> LayerReader<R> {
@@ -326,7 +337,7 @@ impl State {
             machine.e_modes.relative = false;
         }
         State {
-            machine,
+            machine: machine.clone(),
             keep_raw: options.keep_raw,
             filament_area: filament_area(cfg.filament_diameter()),
             config_layer_height: cfg.layer_height(),
@@ -341,6 +352,7 @@ impl State {
             },
             objects: Vec::new(),
             object_keys: Vec::new(),
+            objects_changed: false,
             diagnostics: Diagnostics::default(),
             marker_kind: None,
             markers_promised: false,
@@ -350,7 +362,10 @@ impl State {
             height_tag: None,
             object: None,
             in_config: false,
-            cur: Builder::new(LayerKind::Preamble, 1),
+            cur: Builder {
+                start: options.keep_raw.then(|| Box::new(machine.snapshot())),
+                ..Builder::new(LayerKind::Preamble, 1)
+            },
             open_path: None,
             z_change: None,
             held: Vec::new(),
@@ -358,10 +373,24 @@ impl State {
             next_index: 0,
             prev_layer_z: 0.0,
             last_height: 0.0,
+            before_line: Machine::new(),
         }
     }
 
+    /// A new block starting at `line`, remembering the interpreter's state there (the machine
+    /// has not run `line` yet when this is called).
+    fn new_builder(&self, kind: LayerKind, line: u64) -> Builder {
+        let mut b = Builder::new(kind, line);
+        if self.keep_raw {
+            b.start = Some(Box::new(self.machine.snapshot()));
+        }
+        b
+    }
+
     fn handle_line(&mut self, raw: &[u8], number: u64) {
+        if self.keep_raw {
+            self.before_line = self.machine.snapshot();
+        }
         let content = strip_terminator(raw);
         let parsed = parse_line(content);
 
@@ -501,6 +530,7 @@ impl State {
             None => {
                 self.object_keys.push(key);
                 self.objects.push(name);
+                self.objects_changed = true;
                 self.objects.len() - 1
             }
         };
@@ -549,6 +579,7 @@ impl State {
             if let Some(i) = self.object {
                 if let Some(id) = self.object_keys[i as usize].strip_prefix("M486 ") {
                     self.objects[i as usize] = format!("{name} (id {id})");
+                    self.objects_changed = true;
                 }
             }
         }
@@ -569,7 +600,8 @@ impl State {
                 self.marker_kind = Some(kind);
                 self.cur.kind = LayerKind::Preamble;
                 self.close_path();
-                let cur = std::mem::replace(&mut self.cur, Builder::new(LayerKind::Layer, line));
+                let next = self.new_builder(LayerKind::Layer, line);
+                let cur = std::mem::replace(&mut self.cur, next);
                 let last = self.complete(cur);
                 let mut blocks = self.held.drain(..).chain(std::iter::once(last));
                 if let Some(mut pre) = blocks.next() {
@@ -608,7 +640,8 @@ impl State {
                 self.close_path();
             }
             if (m.to[2] - m.from[2]).abs() > 1e-9 && self.z_change.is_none() {
-                self.z_change = Some((self.cur.raw.len(), line));
+                let before = self.keep_raw.then(|| Box::new(self.before_line.clone()));
+                self.z_change = Some((self.cur.raw.len(), line, before));
             }
             return;
         }
@@ -656,7 +689,13 @@ impl State {
             return;
         }
         self.close_path();
-        let (offset, first_line) = self.z_change.unwrap_or((self.cur.raw.len(), line));
+        let (offset, first_line, start) = self.z_change.take().unwrap_or_else(|| {
+            (
+                self.cur.raw.len(),
+                line,
+                self.keep_raw.then(|| Box::new(self.before_line.clone())),
+            )
+        });
         let tail = if self.keep_raw {
             self.cur.raw.split_off(offset.min(self.cur.raw.len()))
         } else {
@@ -668,6 +707,7 @@ impl State {
         self.cur.kind = LayerKind::Layer;
         self.cur.raw = tail;
         self.cur.last_line = old_last;
+        self.cur.start = start;
     }
 
     fn extend_path(&mut self, m: &Move, line: u64) {
@@ -742,7 +782,8 @@ impl State {
     fn finish_current(&mut self, next_first_line: u64) {
         self.close_path();
         let kind = self.cur.kind;
-        let b = std::mem::replace(&mut self.cur, Builder::new(kind, next_first_line));
+        let next = self.new_builder(kind, next_first_line);
+        let b = std::mem::replace(&mut self.cur, next);
         let layer = self.complete(b);
         match self.facts.layer_source {
             LayerSource::Undecided => {
@@ -825,6 +866,8 @@ impl State {
             first_line: b.first_line,
             last_line: b.last_line,
             raw: b.raw,
+            start: b.start,
+            objects: std::mem::take(&mut self.objects_changed).then(|| self.objects.clone()),
         }
     }
 

@@ -1,0 +1,481 @@
+//! Deposition check: is every strand laid on material that already exists?
+//!
+//! Input: layers from [`crate::layers`] in file order. Output: for each strand sample, whether
+//! it is supported, and per layer the supported / bridged / in-air lengths and the material
+//! density.
+//!
+//! Model: strands are deposited in file order. A strand's bead is as wide as its E makes it
+//! (flow model at its height), whatever a comment says. A point of a strand is supported when
+//! material deposited before it (the layer below, or earlier strands of this layer, not the
+//! strand's own last two widths of path) lies within `(0.5 - overlap_min) x width` of it.
+//! Unsupported runs are *bridged* when supported points bound them on both sides and they span
+//! at most `max_bridge` mm, else *in air*. Density = extruded volume / footprint area / height
+//! (about 1.0 for a normal layer).
+
+use std::collections::HashMap;
+
+use geo::Area;
+use serde::Serialize;
+
+use crate::geometry::footprint;
+use crate::layers::{flow_width, Layer, LayerKind, Path};
+
+/// Settings of the check.
+#[derive(Debug, Clone, Serialize)]
+pub struct CheckOptions {
+    /// A point is supported when material lies within (0.5 - overlap_min) x its width.
+    pub overlap_min: f64,
+    /// Longest unsupported span counted as an intended bridge (mm).
+    pub max_bridge: f64,
+    /// Sampling step along strands (mm).
+    pub step: f64,
+}
+
+impl Default for CheckOptions {
+    fn default() -> Self {
+        CheckOptions {
+            overlap_min: 0.25,
+            max_bridge: 10.0,
+            step: 0.1,
+        }
+    }
+}
+
+/// A deposited segment: centreline and half width.
+#[derive(Debug, Clone, Copy)]
+struct Seg {
+    a: [f64; 2],
+    b: [f64; 2],
+    half: f64,
+}
+
+impl Seg {
+    fn distance(&self, p: [f64; 2]) -> f64 {
+        let (dx, dy) = (self.b[0] - self.a[0], self.b[1] - self.a[1]);
+        let len2 = dx * dx + dy * dy;
+        let t = if len2 > 0.0 {
+            (((p[0] - self.a[0]) * dx + (p[1] - self.a[1]) * dy) / len2).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let (x, y) = (self.a[0] + t * dx - p[0], self.a[1] + t * dy - p[1]);
+        (x * x + y * y).sqrt()
+    }
+}
+
+/// Segments bucketed on a square grid for nearby queries.
+struct Grid {
+    cell: f64,
+    segs: Vec<Seg>,
+    cells: HashMap<(i64, i64), Vec<u32>>,
+    max_half: f64,
+}
+
+impl Grid {
+    fn new(cell: f64) -> Grid {
+        Grid {
+            cell,
+            segs: Vec::new(),
+            cells: HashMap::new(),
+            max_half: 0.0,
+        }
+    }
+
+    fn key(&self, x: f64, y: f64) -> (i64, i64) {
+        (
+            (x / self.cell).floor() as i64,
+            (y / self.cell).floor() as i64,
+        )
+    }
+
+    fn insert(&mut self, s: Seg) {
+        let id = self.segs.len() as u32;
+        let pad = s.half;
+        let (x0, y0) = self.key(s.a[0].min(s.b[0]) - pad, s.a[1].min(s.b[1]) - pad);
+        let (x1, y1) = self.key(s.a[0].max(s.b[0]) + pad, s.a[1].max(s.b[1]) + pad);
+        // Long segments are rare (the grid is coarse enough); cap the fan-out all the same.
+        if (x1 - x0 + 1) * (y1 - y0 + 1) > 40_000 {
+            return;
+        }
+        for x in x0..=x1 {
+            for y in y0..=y1 {
+                self.cells.entry((x, y)).or_default().push(id);
+            }
+        }
+        self.max_half = self.max_half.max(s.half);
+        self.segs.push(s);
+    }
+
+    /// Whether material lies within `reach` of `p` (edge of a bead, not its centreline).
+    fn near(&self, p: [f64; 2], reach: f64) -> bool {
+        let r = reach + self.max_half;
+        let (x0, y0) = self.key(p[0] - r, p[1] - r);
+        let (x1, y1) = self.key(p[0] + r, p[1] + r);
+        for x in x0..=x1 {
+            for y in y0..=y1 {
+                if let Some(ids) = self.cells.get(&(x, y)) {
+                    for &i in ids {
+                        let s = &self.segs[i as usize];
+                        if s.distance(p) - s.half <= reach {
+                            return true;
+                        }
+                    }
+                }
+            }
+        }
+        false
+    }
+}
+
+/// The fate of one strand sample.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Support {
+    Supported,
+    Bridged,
+    InAir,
+}
+
+/// One sample of a strand.
+#[derive(Debug, Clone, Copy)]
+pub struct Sample {
+    pub point: [f64; 2],
+    /// Source line of the segment holding the sample.
+    pub line: u64,
+    /// Length of path this sample stands for (mm).
+    pub length: f64,
+    pub support: Support,
+}
+
+/// Results for one layer.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct LayerCheck {
+    pub layer: usize,
+    pub z: f64,
+    pub length_mm: f64,
+    pub supported_mm: f64,
+    pub bridged_mm: f64,
+    pub in_air_mm: f64,
+    pub longest_in_air_mm: f64,
+    /// Where the longest in-air run starts: [x, y] and line.
+    pub longest_in_air_at: Option<([f64; 2], u64)>,
+    /// Extruded volume / footprint area / height.
+    pub density: f64,
+    #[serde(skip)]
+    pub samples: Vec<Sample>,
+}
+
+/// Width of a segment's bead from its E.
+fn seg_width(path: &Path, i: usize, filament_area: f64) -> f64 {
+    let (a, b) = (path.points[i], path.points[i + 1]);
+    let len = ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2)).sqrt();
+    flow_width(path.seg_e[i], len, path.height, filament_area).clamp(0.0, 10.0)
+}
+
+fn segments(layer: &Layer, filament_area: f64) -> impl Iterator<Item = Seg> + '_ {
+    layer.paths.iter().flat_map(move |p| {
+        (0..p.points.len().saturating_sub(1)).map(move |i| Seg {
+            a: p.points[i],
+            b: p.points[i + 1],
+            half: seg_width(p, i, filament_area) / 2.0,
+        })
+    })
+}
+
+/// Checks `layer` against the layer below it. `keep_samples` keeps every sample (for pictures
+/// and tests).
+pub fn check_layer(
+    below: Option<&Layer>,
+    layer: &Layer,
+    filament_area: f64,
+    opts: &CheckOptions,
+    keep_samples: bool,
+) -> LayerCheck {
+    let mut result = LayerCheck {
+        layer: layer.index + 1,
+        z: layer.z,
+        ..Default::default()
+    };
+    let mut grid = Grid::new(1.0);
+    let on_bed = layer.kind == LayerKind::Layer && layer.index == 0;
+    if let Some(b) = below {
+        for s in segments(b, filament_area) {
+            grid.insert(s);
+        }
+    }
+    let mut volume = 0.0;
+    for path in &layer.paths {
+        // (distance along the path, sample, supported?)
+        let mut samples: Vec<(f64, Sample, bool)> = Vec::new();
+        // The path's own segments wait until they are two widths behind.
+        let mut own: Vec<(f64, Seg)> = Vec::new();
+        let mut along = 0.0;
+        for i in 0..path.points.len().saturating_sub(1) {
+            let (a, b) = (path.points[i], path.points[i + 1]);
+            let len = ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2)).sqrt();
+            let w = seg_width(path, i, filament_area);
+            volume += path.seg_e[i] * filament_area;
+            if len <= 1e-9 {
+                continue;
+            }
+            let reach = (0.5 - opts.overlap_min) * w;
+            let n = ((len / opts.step).ceil() as usize).max(1);
+            for k in 0..n {
+                let t = (k as f64 + 0.5) / n as f64;
+                let p = [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])];
+                let s_here = along + t * len;
+                while let Some((end, _)) = own.first() {
+                    if s_here - end >= 2.0 * w {
+                        let (_, seg) = own.remove(0);
+                        grid.insert(seg);
+                    } else {
+                        break;
+                    }
+                }
+                let ok = on_bed || grid.near(p, reach);
+                samples.push((
+                    s_here,
+                    Sample {
+                        point: p,
+                        line: path.seg_line[i],
+                        length: len / n as f64,
+                        support: Support::Supported,
+                    },
+                    ok,
+                ));
+            }
+            along += len;
+            own.push((
+                along,
+                Seg {
+                    a,
+                    b,
+                    half: w / 2.0,
+                },
+            ));
+        }
+        for (_, seg) in own {
+            grid.insert(seg);
+        }
+        classify(&mut samples, opts, &mut result);
+        if keep_samples {
+            result.samples.extend(samples.into_iter().map(|s| s.1));
+        }
+    }
+    let area = footprint(
+        layer
+            .paths
+            .iter()
+            .map(|p| {
+                // The footprint of what E makes, not of what a comment says.
+                let mut q = p.clone();
+                q.width = p.e_width(filament_area);
+                q
+            })
+            .collect::<Vec<_>>()
+            .iter(),
+    )
+    .unsigned_area();
+    if area > 0.0 && layer.height > 0.0 {
+        result.density = volume / area / layer.height;
+    }
+    result
+}
+
+/// Turns per-sample supported flags into supported / bridged / in-air runs.
+fn classify(samples: &mut [(f64, Sample, bool)], opts: &CheckOptions, out: &mut LayerCheck) {
+    let n = samples.len();
+    let mut i = 0;
+    while i < n {
+        if samples[i].2 {
+            out.supported_mm += samples[i].1.length;
+            out.length_mm += samples[i].1.length;
+            i += 1;
+            continue;
+        }
+        let start = i;
+        while i < n && !samples[i].2 {
+            i += 1;
+        }
+        let span_from = if start > 0 {
+            samples[start - 1].0
+        } else {
+            samples[start].0
+        };
+        let span_to = if i < n {
+            samples[i].0
+        } else {
+            samples[i - 1].0
+        };
+        let anchored = start > 0 && i < n;
+        let bridged = anchored && span_to - span_from <= opts.max_bridge;
+        let run: f64 = samples[start..i].iter().map(|s| s.1.length).sum();
+        out.length_mm += run;
+        for s in &mut samples[start..i] {
+            s.1.support = if bridged {
+                Support::Bridged
+            } else {
+                Support::InAir
+            };
+        }
+        if bridged {
+            out.bridged_mm += run;
+        } else {
+            out.in_air_mm += run;
+            if run > out.longest_in_air_mm {
+                out.longest_in_air_mm = run;
+                out.longest_in_air_at = Some((samples[start].1.point, samples[start].1.line));
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::layers::{filament_area, Role};
+
+    /// A strand with the E of a `width` bead at 0.2 mm height on 1.75 mm filament.
+    fn strand(points: Vec<[f64; 2]>, width: f64) -> Path {
+        let h = 0.2;
+        let area = (width - h) * h + std::f64::consts::PI * h * h / 4.0;
+        let fa = filament_area(1.75);
+        let seg_e = points
+            .windows(2)
+            .map(|w| ((w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1])) * area / fa)
+            .collect();
+        Path {
+            role: Role::Unknown,
+            width,
+            height: h,
+            z: 0.4,
+            object: None,
+            tool: 0,
+            seg_line: vec![1; points.len() - 1],
+            seg_e,
+            points,
+            feed: 1200.0,
+        }
+    }
+
+    fn layer(index: usize, paths: Vec<Path>) -> Layer {
+        Layer {
+            kind: LayerKind::Layer,
+            index,
+            marker_number: None,
+            z: 0.2 * (index + 1) as f64,
+            height: 0.2,
+            paths,
+            first_line: 1,
+            last_line: 1,
+            raw: Vec::new(),
+            start: None,
+            objects: None,
+        }
+    }
+
+    fn circle(r: f64) -> Vec<[f64; 2]> {
+        (0..=360)
+            .map(|i| {
+                let a = (i as f64).to_radians();
+                [r * a.cos(), r * a.sin()]
+            })
+            .collect()
+    }
+
+    fn disk(r: f64) -> Layer {
+        // Concentric rings 0.45 apart filling a disk.
+        let mut paths = Vec::new();
+        let mut rr = 0.45;
+        while rr <= r {
+            paths.push(strand(circle(rr), 0.45));
+            rr += 0.45;
+        }
+        layer(1, paths)
+    }
+
+    fn rings(from: f64, to: f64, spacing: f64) -> Layer {
+        let mut paths = Vec::new();
+        let mut r = from;
+        while r <= to {
+            paths.push(strand(circle(r), 0.45));
+            r += spacing;
+        }
+        layer(2, paths)
+    }
+
+    #[test]
+    fn rings_at_0_30_over_a_disk_edge_are_supported() {
+        let below = disk(5.0);
+        let above = rings(4.9, 8.0, 0.30);
+        let c = check_layer(
+            Some(&below),
+            &above,
+            filament_area(1.75),
+            &CheckOptions::default(),
+            false,
+        );
+        assert!(c.supported_mm / c.length_mm > 0.99, "{c:?}");
+        assert!(c.in_air_mm < 1.0);
+    }
+
+    #[test]
+    fn rings_at_0_45_are_in_air() {
+        let below = disk(5.0);
+        let above = rings(4.9, 8.0, 0.45);
+        let c = check_layer(
+            Some(&below),
+            &above,
+            filament_area(1.75),
+            &CheckOptions::default(),
+            false,
+        );
+        // Only the first ring, on the disk's edge, is held.
+        assert!(c.in_air_mm / c.length_mm > 0.7, "{c:?}");
+    }
+
+    #[test]
+    fn bridge_over_a_gap_and_cantilever() {
+        let fa = filament_area(1.75);
+        let below = layer(
+            1,
+            vec![
+                strand(vec![[0.0, 0.0], [5.0, 0.0]], 0.45),
+                strand(vec![[15.0, 0.0], [20.0, 0.0]], 0.45),
+            ],
+        );
+        let across = layer(2, vec![strand(vec![[0.0, 0.0], [20.0, 0.0]], 0.45)]);
+        let c = check_layer(Some(&below), &across, fa, &CheckOptions::default(), false);
+        assert!(c.in_air_mm < 1e-9, "{c:?}");
+        assert!((c.bridged_mm - 10.0).abs() < 1.0, "{c:?}");
+        let cantilever = layer(2, vec![strand(vec![[0.0, 0.0], [45.0, 0.0]], 0.45)]);
+        let below = layer(1, vec![strand(vec![[0.0, 0.0], [5.0, 0.0]], 0.45)]);
+        let c = check_layer(
+            Some(&below),
+            &cantilever,
+            fa,
+            &CheckOptions::default(),
+            false,
+        );
+        assert!((c.in_air_mm - 40.0).abs() < 1.0, "{c:?}");
+        assert!((c.longest_in_air_mm - 40.0).abs() < 1.0);
+    }
+
+    #[test]
+    fn a_normal_layer_has_density_one() {
+        let paths: Vec<Path> = (0..20)
+            .map(|i| {
+                let y = i as f64 * (0.45 - 0.2 * (1.0 - std::f64::consts::FRAC_PI_4));
+                strand(vec![[0.0, y], [20.0, y]], 0.45)
+            })
+            .collect();
+        let c = check_layer(
+            None,
+            &layer(0, paths),
+            filament_area(1.75),
+            &CheckOptions::default(),
+            false,
+        );
+        assert!((c.density - 1.0).abs() < 0.05, "{}", c.density);
+    }
+}

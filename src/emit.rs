@@ -1,0 +1,968 @@
+//! Stage 6: write the rewritten G-code, changing only what the plan changes.
+//!
+//! Input: a layer with its raw bytes and the interpreter state at its start, and the [`Plan`]s
+//! of its regions. Output: the layer's new bytes and what changed.
+//!
+//! Invariants:
+//! - A line is copied byte for byte unless it is an extrusion of the part that crosses a plan's
+//!   zone. Such a line is split where it crosses the zone: the parts outside keep their path
+//!   and their share of the line's E; the parts inside become travel moves.
+//! - Each region's strands are written as one block, inserted before the first line that
+//!   crosses its zone. The block leaves the machine as it found it: position, feedrate, fan,
+//!   retraction, and in absolute-E mode the E counter (re-synced with G92).
+//! - E bookkeeping is exact in both M82 and M83: every line outside the changes extrudes
+//!   exactly what it did.
+
+use std::io::{self, BufRead, Write};
+
+use geo::MultiPolygon;
+use serde::Serialize;
+
+use crate::gcode::{parse_line, split_lines, strip_terminator};
+use crate::geometry::{clip_lines, RegionKind};
+use crate::layers::{flow_width, Layer, Role, SlicerConfig};
+use crate::machine::{Action, Machine};
+use crate::poa::{polyline_length, Plan, PoaSettings, Strand, StrandKind};
+
+/// How the file moves between strands, read from its own settings.
+#[derive(Debug, Clone)]
+pub struct Motion {
+    pub filament_area: f64,
+    /// Retraction length (mm of filament) and speeds (mm/s).
+    pub retract_length: f64,
+    pub retract_speed: f64,
+    pub deretract_speed: f64,
+    /// Z lift on travel (mm); 0 for none.
+    pub lift: f64,
+    pub travel_speed: f64,
+    pub travel_speed_z: f64,
+    /// Travels up to this long (mm) between loops go without retraction.
+    pub short_travel: f64,
+    pub firmware_retraction: bool,
+    /// Loop and perimeter speeds in mm/s, resolved from the settings and the file.
+    pub loop_speed: f64,
+    pub perimeter_speed: f64,
+}
+
+impl Motion {
+    pub fn from_config(config: &SlicerConfig, settings: &PoaSettings) -> Motion {
+        let num = |k: &str, d: f64| config.number(k).filter(|v| *v >= 0.0).unwrap_or(d);
+        let retract_speed = num("retract_speed", 35.0).max(1.0);
+        let deretract = num("deretract_speed", 0.0);
+        let loop_speed = settings
+            .loop_speed
+            .unwrap_or_else(|| num("bridge_speed", 25.0))
+            .max(1.0);
+        Motion {
+            filament_area: crate::layers::filament_area(config.filament_diameter()),
+            retract_length: config.retract_length(),
+            retract_speed,
+            deretract_speed: if deretract > 0.0 {
+                deretract
+            } else {
+                retract_speed
+            },
+            lift: num("retract_lift", 0.0).min(5.0),
+            travel_speed: num("travel_speed", 150.0).max(1.0),
+            travel_speed_z: num("travel_speed_z", 0.0).max(0.0),
+            short_travel: num("retract_before_travel", 2.0).max(0.0),
+            firmware_retraction: config.bool("use_firmware_retraction") == Some(true),
+            loop_speed,
+            perimeter_speed: settings.perimeter_speed.unwrap_or(loop_speed).max(1.0),
+        }
+    }
+
+    /// Filament per mm of path for a bead of `width` at `height` (Slic3r flow model).
+    pub fn e_per_mm(&self, width: f64, height: f64, flow_factor: f64) -> f64 {
+        let area = (width - height) * height + std::f64::consts::PI * height * height / 4.0;
+        area.max(0.0) / self.filament_area * flow_factor
+    }
+}
+
+/// One region to rewrite in a layer.
+pub struct RegionRewrite {
+    /// 1-based, file-wide.
+    pub id: usize,
+    pub kind: RegionKind,
+    pub plan: Plan,
+}
+
+/// What a region's rewrite changed.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct RewriteStats {
+    pub region: usize,
+    pub layer: usize,
+    pub z: f64,
+    pub loops: usize,
+    pub strands: usize,
+    /// Length of the strands poa wrote (mm).
+    pub written_length_mm: f64,
+    pub written_filament_mm: f64,
+    /// Original extrusion taken out of the zone.
+    pub removed_length_mm: f64,
+    pub removed_filament_mm: f64,
+    /// Travel poa added (mm).
+    pub travel_mm: f64,
+    /// Estimated time added (s), before acceleration: new strands and travel minus what the
+    /// removed extrusion took.
+    pub time_added_s: f64,
+    /// Line before which the block was inserted (input numbering).
+    pub inserted_before_line: u64,
+}
+
+/// A line ending like the layer's own.
+fn line_end(raw: &[u8]) -> &'static str {
+    match memchr::memchr(b'\n', raw) {
+        Some(i) if i > 0 && raw[i - 1] == b'\r' => "\r\n",
+        _ => "\n",
+    }
+}
+
+/// Roles whose strands inside a zone are replaced.
+fn replaced(role: Role) -> bool {
+    role.is_part()
+}
+
+fn fmt_num(v: f64, decimals: usize) -> String {
+    let s = format!("{v:.decimals$}");
+    let s = if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        s
+    };
+    if s == "-0" {
+        "0".into()
+    } else {
+        s
+    }
+}
+
+/// Writes G-code lines with the file's line ending while tracking E and position.
+struct Writer<'a> {
+    out: &'a mut Vec<u8>,
+    nl: &'static str,
+    relative_e: bool,
+    /// The file's E counter (absolute mode).
+    e: f64,
+    pos: [f64; 3],
+    feed: f64,
+}
+
+impl Writer<'_> {
+    fn line(&mut self, s: &str) {
+        self.out.extend_from_slice(s.as_bytes());
+        self.out.extend_from_slice(self.nl.as_bytes());
+    }
+
+    fn e_word(&mut self, de: f64) -> String {
+        if self.relative_e {
+            format!("E{}", fmt_num(de, 5))
+        } else {
+            self.e += de;
+            format!("E{}", fmt_num(self.e, 5))
+        }
+    }
+
+    fn set_feed(&mut self, mm_s: f64) {
+        let f = (mm_s * 60.0).round();
+        if (f - self.feed).abs() > 0.5 {
+            self.line(&format!("G1 F{}", fmt_num(f, 0)));
+            self.feed = f;
+        }
+    }
+
+    fn extrude_to(&mut self, p: [f64; 2], de: f64) {
+        let e = self.e_word(de);
+        self.line(&format!(
+            "G1 X{} Y{} {e}",
+            fmt_num(p[0], 3),
+            fmt_num(p[1], 3)
+        ));
+        self.pos[0] = p[0];
+        self.pos[1] = p[1];
+    }
+
+    fn move_to(&mut self, p: [f64; 2]) {
+        self.line(&format!("G1 X{} Y{}", fmt_num(p[0], 3), fmt_num(p[1], 3)));
+        self.pos[0] = p[0];
+        self.pos[1] = p[1];
+    }
+
+    fn retract(&mut self, m: &Motion, length: f64) {
+        if m.firmware_retraction {
+            self.line("G10");
+        } else if length > 0.0 {
+            self.set_feed(m.retract_speed);
+            let e = self.e_word(-length);
+            self.line(&format!("G1 {e}"));
+        }
+    }
+
+    fn unretract(&mut self, m: &Motion, length: f64) {
+        if m.firmware_retraction {
+            self.line("G11");
+        } else if length > 0.0 {
+            self.set_feed(m.deretract_speed);
+            let e = self.e_word(length);
+            self.line(&format!("G1 {e}"));
+        }
+    }
+
+    fn set_z(&mut self, m: &Motion, z: f64) {
+        if (z - self.pos[2]).abs() > 1e-6 {
+            if m.travel_speed_z > 0.0 {
+                self.set_feed(m.travel_speed_z);
+            } else {
+                self.set_feed(m.travel_speed);
+            }
+            self.line(&format!("G1 Z{}", fmt_num(z, 3)));
+            self.pos[2] = z;
+        }
+    }
+
+    /// A travel with the file's retraction and lift. `primed` says whether the nozzle is
+    /// primed before (and must be after) the travel.
+    fn travel(&mut self, m: &Motion, to: [f64; 2], retract: bool) -> f64 {
+        let d = ((to[0] - self.pos[0]).powi(2) + (to[1] - self.pos[1]).powi(2)).sqrt();
+        if d < 1e-6 {
+            return 0.0;
+        }
+        let z = self.pos[2];
+        if retract {
+            self.retract(m, m.retract_length);
+            if m.lift > 0.0 {
+                self.set_z(m, z + m.lift);
+            }
+        }
+        self.set_feed(m.travel_speed);
+        self.move_to(to);
+        if retract {
+            if m.lift > 0.0 {
+                self.set_z(m, z);
+            }
+            self.unretract(m, m.retract_length);
+        }
+        d
+    }
+}
+
+/// The last `;TYPE:` and `;WIDTH:`-style lines seen, restored after a block so that G-code
+/// viewers keep labelling the slicer's strands correctly.
+#[derive(Default)]
+struct Tags {
+    role: Option<String>,
+    width: Option<String>,
+}
+
+impl Tags {
+    fn see(&mut self, content: &[u8]) {
+        let t = content.trim_ascii();
+        let text = || Some(String::from_utf8_lossy(t).into_owned());
+        if t.starts_with(b";TYPE:") || t.starts_with(b"; FEATURE:") {
+            self.role = text();
+        } else if t.starts_with(b";WIDTH:") || t.starts_with(b"; LINE_WIDTH:") {
+            self.width = text();
+        }
+    }
+}
+
+/// Rewrites one layer. Returns the new bytes and per-region statistics.
+pub fn rewrite_layer(
+    layer: &Layer,
+    rewrites: &[RegionRewrite],
+    motion: &Motion,
+    settings: &PoaSettings,
+) -> (Vec<u8>, Vec<RewriteStats>) {
+    let Some(start) = layer.start.as_deref() else {
+        return (layer.raw.clone(), Vec::new());
+    };
+    let rewrites: Vec<&RegionRewrite> = rewrites
+        .iter()
+        .filter(|r| !r.plan.strands.is_empty())
+        .collect();
+    if rewrites.is_empty() {
+        return (layer.raw.clone(), Vec::new());
+    }
+    // Which lines print part extrusions that may be replaced.
+    let mut replaceable: Vec<u64> = layer
+        .paths
+        .iter()
+        .filter(|p| replaced(p.role))
+        .flat_map(|p| p.seg_line.iter().copied())
+        .collect();
+    replaceable.sort_unstable();
+    replaceable.dedup();
+
+    let nl = line_end(&layer.raw);
+    let mut machine: Machine = start.clone();
+    let mut out = Vec::with_capacity(layer.raw.len() + 64 * 1024);
+    let mut stats: Vec<RewriteStats> = rewrites
+        .iter()
+        .map(|r| RewriteStats {
+            region: r.id,
+            layer: layer.index + 1,
+            z: layer.z,
+            loops: r.plan.loops,
+            strands: r.plan.strands.len(),
+            ..Default::default()
+        })
+        .collect();
+    let mut done = vec![false; rewrites.len()];
+    let mut tags = Tags::default();
+    let mut number = layer.first_line;
+    // Where the nozzle really is while it differs from where the file believes it is (after
+    // removed extrusion, until the next motion needs it back in step).
+    let mut real: Option<[f64; 2]> = None;
+    for raw in split_lines(&layer.raw) {
+        let content = strip_terminator(raw);
+        let parsed = parse_line(content);
+        if parsed.comment.is_some() {
+            tags.see(content);
+        }
+        let before = machine.snapshot();
+        let action = machine.step(&parsed, number);
+        let mut crossing = None;
+        if let Action::Move(m) = &action {
+            if m.is_extrusion() && replaceable.binary_search(&number).is_ok() {
+                let pts = m.points(0.01);
+                let hits: Vec<(usize, Vec<(f64, f64)>)> = rewrites
+                    .iter()
+                    .enumerate()
+                    .map(|(i, r)| (i, inside_intervals(&pts, &r.plan.zone)))
+                    .filter(|(_, iv)| !iv.is_empty())
+                    .collect();
+                if !hits.is_empty() {
+                    crossing = Some((*m, pts, hits));
+                }
+            }
+        }
+        let Some((m, pts, hits)) = crossing else {
+            if let Action::Move(mv) = &action {
+                let moves_xy = mv.from[0] != mv.to[0] || mv.from[1] != mv.to[1];
+                if mv.is_extrusion() || before.xyz_relative() || mv.arc.is_some() {
+                    // Where this move starts matters.
+                    resync(&mut out, nl, &before, &mut real, motion);
+                } else if moves_xy {
+                    // An absolute travel ends where the file says, wherever it starts.
+                    real = None;
+                }
+            }
+            out.extend_from_slice(raw);
+            number += 1;
+            continue;
+        };
+        for (i, _) in &hits {
+            if !done[*i] {
+                done[*i] = true;
+                stats[*i].inserted_before_line = number;
+                resync(&mut out, nl, &before, &mut real, motion);
+                emit_block(
+                    &mut out,
+                    nl,
+                    &before,
+                    layer,
+                    rewrites[*i],
+                    motion,
+                    settings,
+                    &tags,
+                    &mut stats[*i],
+                );
+            }
+        }
+        let mut all: Vec<(f64, f64)> = hits.iter().flat_map(|(_, iv)| iv.iter().copied()).collect();
+        all.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let (len, e) = split_move(
+            &mut out, nl, &mut real, motion, &before, &m, &pts, &all, content,
+        );
+        let share = 1.0 / hits.len() as f64;
+        for (i, _) in &hits {
+            stats[*i].removed_length_mm += len * share;
+            stats[*i].removed_filament_mm += e * share;
+            stats[*i].time_added_s -= len * share / (m.feed / 60.0).max(0.1);
+        }
+        number += 1;
+    }
+    // The layer ended inside a zone: put the nozzle where the file's last move ended.
+    resync(&mut out, nl, &machine, &mut real, motion);
+    (out, stats)
+}
+
+/// Brings the nozzle from where it really is to where `state` says it is.
+fn resync(
+    out: &mut Vec<u8>,
+    nl: &'static str,
+    state: &Machine,
+    real: &mut Option<[f64; 2]>,
+    motion: &Motion,
+) {
+    let Some(from) = real.take() else {
+        return;
+    };
+    let at = state.position();
+    let mut w = Writer {
+        out,
+        nl,
+        relative_e: state.e_relative(),
+        e: state.e_logical(),
+        pos: [from[0], from[1], at[2]],
+        feed: state.feedrate(),
+    };
+    let d = ((at[0] - from[0]).powi(2) + (at[1] - from[1]).powi(2)).sqrt();
+    if d < 1e-6 {
+        return;
+    }
+    w.travel(
+        motion,
+        [at[0], at[1]],
+        d > motion.short_travel && !state.is_retracted(),
+    );
+    let feed = state.feedrate();
+    if (w.feed - feed).abs() > 0.5 {
+        w.line(&format!("G1 F{}", fmt_num(feed, 0)));
+    }
+    if !w.relative_e && (w.e - state.e_logical()).abs() > 1e-9 {
+        w.line(&format!("G92 E{}", fmt_num(state.e_logical(), 5)));
+    }
+}
+
+/// Parameter intervals (in units of cumulative length along `pts`) of the polyline inside
+/// `zone`, merged and sorted.
+fn inside_intervals(pts: &[[f64; 2]], zone: &MultiPolygon<f64>) -> Vec<(f64, f64)> {
+    let total = polyline_length(pts);
+    if total <= 1e-9 {
+        return Vec::new();
+    }
+    let pieces = clip_lines(&[pts.to_vec()], zone, true);
+    let mut iv: Vec<(f64, f64)> = pieces
+        .iter()
+        .filter(|p| polyline_length(p) > 1e-4)
+        .map(|p| {
+            let a = param(pts, p[0]);
+            let b = param(pts, p[p.len() - 1]);
+            (a.min(b), a.max(b))
+        })
+        .collect();
+    iv.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut merged: Vec<(f64, f64)> = Vec::new();
+    for (a, b) in iv {
+        match merged.last_mut() {
+            Some(last) if a <= last.1 + 1e-6 => last.1 = last.1.max(b),
+            _ => merged.push((a, b)),
+        }
+    }
+    merged
+}
+
+/// Cumulative length along `pts` of the point nearest to `q`.
+fn param(pts: &[[f64; 2]], q: [f64; 2]) -> f64 {
+    let mut best = (f64::INFINITY, 0.0);
+    let mut acc = 0.0;
+    for w in pts.windows(2) {
+        let (a, b) = (w[0], w[1]);
+        let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+        let len2 = dx * dx + dy * dy;
+        let t = if len2 > 0.0 {
+            (((q[0] - a[0]) * dx + (q[1] - a[1]) * dy) / len2).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let p = [a[0] + t * dx, a[1] + t * dy];
+        let d = (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2);
+        let len = len2.sqrt();
+        if d < best.0 {
+            best = (d, acc + t * len);
+        }
+        acc += len;
+    }
+    best.1
+}
+
+/// The point at cumulative length `s` along `pts`, and the index of the segment holding it.
+fn point_at(pts: &[[f64; 2]], s: f64) -> [f64; 2] {
+    let mut acc = 0.0;
+    for w in pts.windows(2) {
+        let len = ((w[1][0] - w[0][0]).powi(2) + (w[1][1] - w[0][1]).powi(2)).sqrt();
+        if acc + len >= s && len > 0.0 {
+            let t = ((s - acc) / len).clamp(0.0, 1.0);
+            return [
+                w[0][0] + t * (w[1][0] - w[0][0]),
+                w[0][1] + t * (w[1][1] - w[0][1]),
+            ];
+        }
+        acc += len;
+    }
+    pts[pts.len() - 1]
+}
+
+/// Pieces of a path between cut points: (end point, length, inside a zone).
+fn pieces(pts: &[[f64; 2]], inside: &[(f64, f64)]) -> Vec<([f64; 2], f64, bool)> {
+    let total = polyline_length(pts);
+    // Cut points, snapped to the ends so that no sliver piece is left at either end.
+    let snap = |t: f64| {
+        if t < 1e-4 {
+            0.0
+        } else if t > total - 1e-4 {
+            total
+        } else {
+            t
+        }
+    };
+    let mut cuts: Vec<(f64, bool)> = vec![(0.0, false)];
+    for (a, b) in inside {
+        cuts.push((snap(*a), true));
+        cuts.push((snap(*b), false));
+    }
+    cuts.push((total, false));
+    let mut vertex_s = Vec::with_capacity(pts.len());
+    let mut acc = 0.0;
+    vertex_s.push(0.0);
+    for w in pts.windows(2) {
+        acc += ((w[1][0] - w[0][0]).powi(2) + (w[1][1] - w[0][1]).powi(2)).sqrt();
+        vertex_s.push(acc);
+    }
+    let mut out: Vec<([f64; 2], f64, bool)> = Vec::new();
+    for c in cuts.windows(2) {
+        let ((s0, ins), s1) = (c[0], c[1].0);
+        if s1 - s0 <= 1e-6 {
+            continue;
+        }
+        let mut prev = s0;
+        let interior = vertex_s
+            .iter()
+            .zip(pts)
+            .filter(|(v, _)| **v > s0 + 1e-6 && **v < s1 - 1e-6)
+            .map(|(v, p)| (*v, *p));
+        for (v, p) in interior.chain(std::iter::once((s1, point_at(pts, s1)))) {
+            match out.last_mut() {
+                // Consecutive travel pieces collapse into one move.
+                Some(last) if ins && last.2 => {
+                    last.0 = p;
+                    last.1 += v - prev;
+                }
+                _ => out.push((p, v - prev, ins)),
+            }
+            prev = v;
+        }
+    }
+    out
+}
+
+/// Replaces one extrusion line: outside the zones it extrudes its share of E along its own
+/// path; inside, the nozzle stays put (`real` records where it is) so that runs of removed
+/// extrusion collapse into one travel, made when the next extrusion or move needs it.
+/// Returns the length and filament taken out.
+#[allow(clippy::too_many_arguments)]
+fn split_move(
+    out: &mut Vec<u8>,
+    nl: &'static str,
+    real: &mut Option<[f64; 2]>,
+    motion: &Motion,
+    before: &Machine,
+    m: &crate::machine::Move,
+    pts: &[[f64; 2]],
+    inside: &[(f64, f64)],
+    original: &[u8],
+) -> (f64, f64) {
+    let total = polyline_length(pts);
+    let per_mm = m.e / total;
+    let z = before.position()[2];
+    let start = real.unwrap_or([m.from[0], m.from[1]]);
+    let mut w = Writer {
+        out,
+        nl,
+        relative_e: before.e_relative(),
+        e: before.e_logical(),
+        pos: [start[0], start[1], z],
+        feed: before.feedrate(),
+    };
+    w.line(&format!(
+        "; poa: split {}",
+        String::from_utf8_lossy(original).trim()
+    ));
+    // Where the file believes the nozzle is, piece by piece.
+    let mut file_pos = [m.from[0], m.from[1]];
+    let mut removed = (0.0, 0.0);
+    for (p, len, ins) in pieces(pts, inside) {
+        if ins {
+            if real.is_none() {
+                *real = Some([w.pos[0], w.pos[1]]);
+            }
+            removed.0 += len;
+            removed.1 += len * per_mm;
+        } else {
+            if real.take().is_some() {
+                let d =
+                    ((file_pos[0] - w.pos[0]).powi(2) + (file_pos[1] - w.pos[1]).powi(2)).sqrt();
+                if d > 1e-6 {
+                    w.travel(motion, file_pos, d > motion.short_travel);
+                }
+            }
+            if (w.feed - m.feed).abs() > 0.5 {
+                w.line(&format!("G1 F{}", fmt_num(m.feed, 0)));
+                w.feed = m.feed;
+            }
+            w.extrude_to(p, len * per_mm);
+        }
+        file_pos = p;
+    }
+    if real.is_some() && (w.feed - m.feed).abs() > 0.5 {
+        // The modal feedrate after this line is the line's own.
+        w.line(&format!("G1 F{}", fmt_num(m.feed, 0)));
+        w.feed = m.feed;
+    } else if (w.feed - m.feed).abs() > 0.5 {
+        w.line(&format!("G1 F{}", fmt_num(m.feed, 0)));
+    }
+    if !w.relative_e {
+        // Back on the file's own E count.
+        let after = before.e_logical() + m.e;
+        if (w.e - after).abs() > 1e-9 {
+            w.line(&format!("G92 E{}", fmt_num(after, 5)));
+        }
+    }
+    removed
+}
+
+/// Writes one region's strands, leaving the machine as `before` had it.
+#[allow(clippy::too_many_arguments)]
+fn emit_block(
+    out: &mut Vec<u8>,
+    nl: &'static str,
+    before: &Machine,
+    layer: &Layer,
+    rewrite: &RegionRewrite,
+    motion: &Motion,
+    settings: &PoaSettings,
+    tags: &Tags,
+    stats: &mut RewriteStats,
+) {
+    let relative = before.e_relative();
+    let mut w = Writer {
+        out,
+        nl,
+        relative_e: relative,
+        e: before.e_logical(),
+        pos: before.position(),
+        feed: before.feedrate(),
+    };
+    let home = [before.position()[0], before.position()[1]];
+    let plan = &rewrite.plan;
+    w.line(&format!(
+        ";POA_BEGIN region {} ({}): {} loops, {} strands",
+        rewrite.id,
+        rewrite.kind.name(),
+        plan.loops,
+        plan.strands.len()
+    ));
+    w.line(";TYPE:Overhang perimeter");
+    let was_retracted = before.is_retracted();
+    let height = if layer.height > 0.0 {
+        layer.height
+    } else {
+        0.2
+    };
+    let mut travel = 0.0;
+    let mut time = 0.0;
+    // Get to the first strand like the file travels.
+    if let Some(first) = plan.strands.first() {
+        if was_retracted {
+            w.set_feed(motion.travel_speed);
+            travel += dist(w.pos, first.points[0]);
+            w.move_to(first.points[0]);
+            w.unretract(motion, before.retracted.max(0.0));
+        } else {
+            travel += w.travel(motion, first.points[0], true);
+        }
+    }
+    w.line(&format!(
+        "M106 S{}",
+        fmt_num((settings.fan.clamp(0.0, 1.0) * 255.0).round(), 0)
+    ));
+    let mut width_tag = f64::NAN;
+    let mut last_loop = 0;
+    for (i, s) in plan.strands.iter().enumerate() {
+        if i > 0 {
+            let d = dist(w.pos, s.points[0]);
+            let short = d <= motion.short_travel.max(2.0 * s.width);
+            travel += w.travel(motion, s.points[0], !short);
+            time += d / motion.travel_speed;
+        }
+        if settings.dwell > 0.0
+            && s.kind == StrandKind::Loop
+            && s.loop_index != last_loop
+            && last_loop > 0
+        {
+            w.line(&format!("G4 P{}", fmt_num(settings.dwell * 1000.0, 0)));
+            time += settings.dwell;
+        }
+        last_loop = s.loop_index;
+        // The width the E makes, by the flow model at this layer's height.
+        let per_mm = motion.e_per_mm(s.width, height, settings.flow_factor);
+        let bead = flow_width(per_mm, 1.0, height, motion.filament_area);
+        if (bead - width_tag).abs() > 1e-6 {
+            w.line(&format!(";WIDTH:{}", fmt_num(bead, 3)));
+            width_tag = bead;
+        }
+        let speed = match s.kind {
+            StrandKind::Perimeter => motion.perimeter_speed,
+            _ => motion.loop_speed,
+        };
+        w.set_feed(speed);
+        write_strand(&mut w, s, per_mm, stats);
+        time += s.length() / speed;
+    }
+    // Restore fan, position, retraction, feedrate, E counter and the slicer's tags.
+    let fan = (before.fan * 255.0).round();
+    if fan <= 0.0 {
+        w.line("M107");
+    } else {
+        w.line(&format!("M106 S{}", fmt_num(fan, 0)));
+    }
+    travel += dist(w.pos, home);
+    if was_retracted {
+        w.retract(motion, before.retracted.max(0.0));
+        w.set_feed(motion.travel_speed);
+        w.move_to(home);
+    } else {
+        w.travel(motion, home, true);
+    }
+    time += travel / motion.travel_speed;
+    if (w.pos[2] - before.position()[2]).abs() > 1e-9 {
+        w.set_z(motion, before.position()[2]);
+    }
+    let feed = before.feedrate();
+    w.line(&format!("G1 F{}", fmt_num(feed, 0)));
+    if !relative && (w.e - before.e_logical()).abs() > 1e-9 {
+        w.line(&format!("G92 E{}", fmt_num(before.e_logical(), 5)));
+    }
+    if let Some(t) = &tags.role {
+        w.line(t);
+    }
+    if let Some(t) = &tags.width {
+        w.line(t);
+    }
+    w.line(";POA_END");
+    stats.travel_mm += travel;
+    stats.time_added_s += time;
+}
+
+fn dist(a: [f64; 3], b: [f64; 2]) -> f64 {
+    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt()
+}
+
+/// Vertices closer than this (mm) to the previous one are dropped: their E would round to a
+/// bead of arbitrary width.
+const MIN_SEGMENT: f64 = 0.02;
+
+fn write_strand(w: &mut Writer<'_>, s: &Strand, per_mm: f64, stats: &mut RewriteStats) {
+    let mut pts: Vec<[f64; 2]> = Vec::with_capacity(s.points.len());
+    for p in &s.points {
+        match pts.last() {
+            Some(l) if ((p[0] - l[0]).powi(2) + (p[1] - l[1]).powi(2)).sqrt() < MIN_SEGMENT => {
+                // Keep the strand's true end.
+                if pts.len() > 1 {
+                    if let Some(l) = pts.last_mut() {
+                        *l = *p;
+                    }
+                }
+            }
+            _ => pts.push(*p),
+        }
+    }
+    let mut prev = pts[0];
+    for p in &pts[1..] {
+        let len = ((p[0] - prev[0]).powi(2) + (p[1] - prev[1]).powi(2)).sqrt();
+        if len < 1e-6 {
+            continue;
+        }
+        let de = len * per_mm;
+        w.extrude_to(*p, de);
+        stats.written_length_mm += len;
+        stats.written_filament_mm += de;
+        prev = *p;
+    }
+}
+
+/// The comment poa writes near the top of every file it rewrote; its presence means "done".
+pub const HEADER_MARK: &str = "; poa print-on-air";
+
+/// Whether `head` (the first bytes of a file) shows that poa already rewrote it.
+pub fn already_processed(head: &[u8]) -> bool {
+    split_lines(head)
+        .take(60)
+        .any(|l| l.starts_with(HEADER_MARK.as_bytes()))
+}
+
+/// What `process` did to a file.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct ProcessReport {
+    pub regions_found: usize,
+    pub regions_rewritten: usize,
+    /// Regions left as the slicer made them, with the reason.
+    pub skipped: Vec<SkippedRegion>,
+    pub rewrites: Vec<RewriteStats>,
+    pub loops: usize,
+    pub filament_added_mm: f64,
+    pub time_added_s: f64,
+    pub layers: usize,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct SkippedRegion {
+    pub region: usize,
+    pub layer: usize,
+    pub kind: RegionKind,
+    pub reason: String,
+}
+
+/// Which objects to rewrite, by the names the file labels them with.
+#[derive(Debug, Clone, Default)]
+pub struct ObjectFilter {
+    pub only: Vec<regex::Regex>,
+    pub skip: Vec<regex::Regex>,
+}
+
+impl ObjectFilter {
+    /// Builds a filter from comma-separated glob lists (`*` and `?` wildcards).
+    pub fn from_globs(only: &[String], skip: &[String]) -> Result<Self, String> {
+        let conv = |g: &str| -> Result<regex::Regex, String> {
+            let mut re = String::from("^");
+            for c in g.trim().chars() {
+                match c {
+                    '*' => re.push_str(".*"),
+                    '?' => re.push('.'),
+                    c => re.push_str(&regex::escape(&c.to_string())),
+                }
+            }
+            re.push('$');
+            regex::Regex::new(&re).map_err(|e| format!("bad object pattern {g:?}: {e}"))
+        };
+        Ok(ObjectFilter {
+            only: only.iter().map(|g| conv(g)).collect::<Result<_, _>>()?,
+            skip: skip.iter().map(|g| conv(g)).collect::<Result<_, _>>()?,
+        })
+    }
+
+    pub fn allows(&self, name: Option<&str>) -> bool {
+        let name = name.unwrap_or("");
+        (self.only.is_empty() || self.only.iter().any(|r| r.is_match(name)))
+            && !self.skip.iter().any(|r| r.is_match(name))
+    }
+}
+
+/// Everything `process` needs besides the input.
+pub struct ProcessOptions {
+    pub detect: crate::geometry::DetectOptions,
+    pub settings: PoaSettings,
+    pub objects: ObjectFilter,
+    /// The header comment's text (version and settings), written after the first line.
+    pub header: String,
+}
+
+/// Rewrites a whole file, streaming: reads `input`, writes `output`.
+pub fn process<R: BufRead, W: Write>(
+    input: R,
+    config: SlicerConfig,
+    opts: &ProcessOptions,
+    output: &mut W,
+) -> io::Result<ProcessReport> {
+    let motion = Motion::from_config(&config, &opts.settings);
+    let loop_width = config.external_perimeter_width();
+    let mut reader = crate::layers::LayerReader::new(
+        input,
+        crate::layers::ReaderOptions {
+            keep_raw: true,
+            config,
+        },
+    );
+    let mut report = ProcessReport::default();
+    let mut header_written = false;
+    let mut next_id = 0usize;
+    let mut names: Vec<String> = Vec::new();
+    crate::geometry::detect(reader.by_ref(), &opts.detect, |d| {
+        let layer = d.layer;
+        if let Some(n) = &layer.objects {
+            names.clone_from(n);
+        }
+        if layer.kind == crate::layers::LayerKind::Layer {
+            report.layers += 1;
+        }
+        let mut rewrites = Vec::new();
+        for r in &d.regions {
+            next_id += 1;
+            report.regions_found += 1;
+            let object = r.object.and_then(|o| names.get(o as usize).cloned());
+            let skip = |reason: &str| SkippedRegion {
+                region: next_id,
+                layer: layer.index + 1,
+                kind: r.kind,
+                reason: reason.to_string(),
+            };
+            if !opts.settings.rewrites(r.kind) {
+                let why = match r.kind {
+                    RegionKind::Bridge => "bridge (use --bridges poa to rewrite bridges)",
+                    _ => "floating: nothing below to grow loops from",
+                };
+                report.skipped.push(skip(why));
+                continue;
+            }
+            if !opts.objects.allows(object.as_deref()) {
+                report
+                    .skipped
+                    .push(skip("object excluded by --objects/--skip-objects"));
+                continue;
+            }
+            let start = layer
+                .start
+                .as_ref()
+                .map(|m| [m.position()[0], m.position()[1]])
+                .unwrap_or([0.0, 0.0]);
+            let widths = crate::poa::Widths {
+                loop_width,
+                perimeter_width: loop_width,
+                tolerance: opts.detect.tolerance_at(layer.height),
+            };
+            let plan = crate::poa::plan(r, &d.below, &d.area, widths, &opts.settings, start);
+            if plan.strands.is_empty() {
+                report.skipped.push(skip("no loop fits"));
+                continue;
+            }
+            rewrites.push(RegionRewrite {
+                id: next_id,
+                kind: r.kind,
+                plan,
+            });
+        }
+        let bytes = if rewrites.is_empty() {
+            std::borrow::Cow::Borrowed(&layer.raw)
+        } else {
+            let (bytes, stats) = rewrite_layer(&layer, &rewrites, &motion, &opts.settings);
+            for s in stats {
+                report.regions_rewritten += 1;
+                report.loops += s.loops;
+                report.filament_added_mm += s.written_filament_mm - s.removed_filament_mm;
+                report.time_added_s += s.time_added_s;
+                report.rewrites.push(s);
+            }
+            std::borrow::Cow::Owned(bytes)
+        };
+        if !header_written && !bytes.is_empty() {
+            header_written = true;
+            // After the first line: some tools read the slicer's name from line 1.
+            let first = memchr::memchr(b'\n', &bytes)
+                .map(|i| i + 1)
+                .unwrap_or(bytes.len());
+            output.write_all(&bytes[..first])?;
+            if first == bytes.len() && !bytes.ends_with(b"\n") {
+                output.write_all(line_end(&bytes).as_bytes())?;
+            }
+            let nl = line_end(&bytes);
+            output.write_all(opts.header.as_bytes())?;
+            output.write_all(nl.as_bytes())?;
+            output.write_all(&bytes[first..])?;
+        } else {
+            output.write_all(&bytes)?;
+        }
+        Ok(())
+    })?;
+    Ok(report)
+}

@@ -1,0 +1,290 @@
+//! Stage 5: plan Print-on-Air loops for an unsupported region.
+//!
+//! Input: a [`Region`] of layer i, the printed area of layer i-1 (sectA) and of layer i
+//! (sectB), and the [`PoaSettings`]. Output: a [`Plan`]: the zone whose original extrusions are
+//! taken out, and the strands that replace them, in print order:
+//! 1. loops: offsets of sectA at `k x step - w/2` (k = 1, 2, ...; step = (1 - overlap) x w),
+//!    so that loop 1 bites `overlap x w` into the wall below and each loop bites as much into
+//!    the previous one; clipped to the zone minus the band of its external perimeter;
+//! 2. one contour along the loops' outer clip edge, so the perimeter has material beside it;
+//! 3. the external perimeter of the zone, pulled inward by `perimeter_inset`, convex corners
+//!    rounded.
+//!
+//! Invariants: every strand lies inside the zone; each strand's start is chosen near where the
+//! previous one ended. Offsets always start from sectA itself (never from the previous loop),
+//! so vertex counts do not grow from loop to loop.
+
+use geo::{Area, MultiPolygon};
+use serde::Serialize;
+
+use crate::geometry::{
+    clip_lines, difference, intersection, offset, opening, rings, Polyline, Region, RegionKind,
+};
+
+/// What to do with regions anchored on two or more sides.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum BridgeMode {
+    /// Leave bridges as the slicer made them (a bridge anchored at both ends prints well).
+    Keep,
+    /// Rewrite bridges with loops too.
+    Poa,
+}
+
+/// Settings of the rewrite. Speeds in mm/s, distances in mm.
+#[derive(Debug, Clone, Serialize)]
+pub struct PoaSettings {
+    /// Share of a bead's width each loop overlaps the previous one (0.4 in the paper's spirit).
+    pub overlap: f64,
+    /// Loop speed; `None` uses the file's bridge speed.
+    pub loop_speed: Option<f64>,
+    /// Speed of the moved external perimeter; `None` uses the loop speed.
+    pub perimeter_speed: Option<f64>,
+    /// Part-cooling fan during loops, 0..1.
+    pub fan: f64,
+    /// Pause after each loop, seconds.
+    pub dwell: f64,
+    /// Multiplier on the flow-model extrusion of every strand poa writes.
+    pub flow_factor: f64,
+    /// How far the region's external perimeter is pulled inward.
+    pub perimeter_inset: f64,
+    pub bridges: BridgeMode,
+}
+
+impl Default for PoaSettings {
+    fn default() -> Self {
+        PoaSettings {
+            overlap: 0.4,
+            loop_speed: None,
+            perimeter_speed: None,
+            fan: 1.0,
+            dwell: 0.0,
+            flow_factor: 1.0,
+            perimeter_inset: 0.05,
+            bridges: BridgeMode::Keep,
+        }
+    }
+}
+
+impl PoaSettings {
+    /// Whether a region of this kind gets rewritten.
+    pub fn rewrites(&self, kind: RegionKind) -> bool {
+        match kind {
+            RegionKind::Overhang => true,
+            RegionKind::Bridge => self.bridges == BridgeMode::Poa,
+            // Nothing to grow loops from.
+            RegionKind::Floating => false,
+        }
+    }
+}
+
+/// Widths of the layer being rewritten.
+#[derive(Debug, Clone, Copy)]
+pub struct Widths {
+    /// Loops and contour.
+    pub loop_width: f64,
+    /// External perimeter.
+    pub perimeter_width: f64,
+    /// Region detection tolerance (distance from sectA that still counted as supported).
+    pub tolerance: f64,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum StrandKind {
+    Loop,
+    Contour,
+    Perimeter,
+}
+
+/// One strand poa writes.
+#[derive(Debug, Clone)]
+pub struct Strand {
+    pub kind: StrandKind,
+    /// 1-based loop number for loops, 0 otherwise.
+    pub loop_index: usize,
+    pub points: Polyline,
+    pub width: f64,
+}
+
+impl Strand {
+    pub fn length(&self) -> f64 {
+        polyline_length(&self.points)
+    }
+}
+
+/// The rewrite of one region.
+#[derive(Debug, Clone)]
+pub struct Plan {
+    /// Where the original extrusions are taken out.
+    pub zone: MultiPolygon<f64>,
+    /// Replacement strands in print order.
+    pub strands: Vec<Strand>,
+    pub loops: usize,
+}
+
+pub fn polyline_length(p: &[[f64; 2]]) -> f64 {
+    p.windows(2)
+        .map(|w| ((w[1][0] - w[0][0]).powi(2) + (w[1][1] - w[0][1]).powi(2)).sqrt())
+        .sum()
+}
+
+/// Zones narrower than this are slivers of numeric noise along walls, not overhang.
+const SLIVER: f64 = 0.03;
+
+/// Plans the loops of `region`. `start` is where the nozzle is when the plan begins.
+pub fn plan(
+    region: &Region,
+    below: &MultiPolygon<f64>,
+    area: &MultiPolygon<f64>,
+    widths: Widths,
+    settings: &PoaSettings,
+    start: [f64; 2],
+) -> Plan {
+    let w = widths.loop_width;
+    let we = widths.perimeter_width;
+    let overlap = settings.overlap.clamp(0.05, 0.9);
+    let step = (1.0 - overlap) * w;
+    let inset = settings.perimeter_inset.max(0.0);
+    let reach = region.max_distance.min(1000.0) + widths.tolerance + 2.0 * w;
+
+    // Work near the region only: sectA within reach of it (every loop point's nearest sectA
+    // point lies there), sectB a little beyond it.
+    let region_mp = MultiPolygon::new(vec![region.polygon.clone()]);
+    let hint = offset(&region_mp, widths.tolerance + w);
+    let below_loc = intersection(below, &offset(&hint, reach + w));
+    let area_loc = intersection(area, &offset(&hint, 2.0 * we + 2.0));
+
+    // The zone: what sectB prints beyond sectA around this region, slivers dropped.
+    let zone = opening(
+        &intersection(&difference(&area_loc, &offset(&below_loc, 0.01)), &hint),
+        SLIVER,
+    );
+    if zone.unsigned_area() <= 0.0 {
+        return Plan {
+            zone,
+            strands: Vec::new(),
+            loops: 0,
+        };
+    }
+
+    // The moved external perimeter: the outline pulled in by half its width plus the inset,
+    // convex corners rounded by half a width.
+    let round = we / 2.0;
+    let perimeter_area = offset(&offset(&area_loc, -(we / 2.0 + inset + round)), round);
+    let perimeter = clip_lines(&rings(&perimeter_area), &zone, true);
+
+    // Loops stay inside the contour; contour and perimeter overlap like loops do.
+    let contour_at = we / 2.0 + inset + (we + w) / 2.0 - overlap * w;
+    let inner = intersection(&zone, &offset(&area_loc, -contour_at));
+    let near_below = offset(&below_loc, w / 2.0);
+    let contour = clip_lines(&rings(&inner), &near_below, false);
+
+    let mut loops: Vec<Vec<Polyline>> = Vec::new();
+    let mut k = 1;
+    loop {
+        let d = k as f64 * step - w / 2.0;
+        if d > reach {
+            break;
+        }
+        let grown = offset(&below_loc, d);
+        let pieces: Vec<Polyline> = clip_lines(&rings(&grown), &inner, true)
+            .into_iter()
+            .filter(|p| polyline_length(p) >= w / 2.0)
+            .collect();
+        loops.push(pieces);
+        k += 1;
+    }
+    while loops.last().is_some_and(|l| l.is_empty()) {
+        loops.pop();
+    }
+
+    let mut strands = Vec::new();
+    let mut at = start;
+    for (i, pieces) in loops.into_iter().enumerate() {
+        for p in order(pieces, &mut at) {
+            strands.push(Strand {
+                kind: StrandKind::Loop,
+                loop_index: i + 1,
+                points: p,
+                width: w,
+            });
+        }
+    }
+    let loops_count = strands.iter().map(|s| s.loop_index).max().unwrap_or(0);
+    let contour: Vec<Polyline> = contour
+        .into_iter()
+        .filter(|p| polyline_length(p) >= w)
+        .collect();
+    for p in order(contour, &mut at) {
+        strands.push(Strand {
+            kind: StrandKind::Contour,
+            loop_index: 0,
+            points: p,
+            width: w,
+        });
+    }
+    let perimeter: Vec<Polyline> = perimeter
+        .into_iter()
+        .filter(|p| polyline_length(p) >= we)
+        .collect();
+    for p in order(perimeter, &mut at) {
+        strands.push(Strand {
+            kind: StrandKind::Perimeter,
+            loop_index: 0,
+            points: p,
+            width: we,
+        });
+    }
+    Plan {
+        zone,
+        strands,
+        loops: loops_count,
+    }
+}
+
+fn dist2(a: [f64; 2], b: [f64; 2]) -> f64 {
+    (a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)
+}
+
+/// Orders pieces greedily, each starting at its end (or, for a closed ring, its vertex)
+/// nearest to where the previous one ended. Updates `at` to the last end.
+fn order(mut pieces: Vec<Polyline>, at: &mut [f64; 2]) -> Vec<Polyline> {
+    let mut out = Vec::with_capacity(pieces.len());
+    while !pieces.is_empty() {
+        let mut best = (f64::INFINITY, 0usize);
+        for (i, p) in pieces.iter().enumerate() {
+            let d = if is_closed(p) {
+                p.iter()
+                    .map(|q| dist2(*q, *at))
+                    .fold(f64::INFINITY, f64::min)
+            } else {
+                dist2(p[0], *at).min(dist2(p[p.len() - 1], *at))
+            };
+            if d < best.0 {
+                best = (d, i);
+            }
+        }
+        let mut p = pieces.swap_remove(best.1);
+        if is_closed(&p) {
+            p.pop();
+            let i = p
+                .iter()
+                .enumerate()
+                .min_by(|a, b| dist2(*a.1, *at).total_cmp(&dist2(*b.1, *at)))
+                .map(|(i, _)| i)
+                .unwrap_or(0);
+            p.rotate_left(i);
+            p.push(p[0]);
+        } else if dist2(p[p.len() - 1], *at) < dist2(p[0], *at) {
+            p.reverse();
+        }
+        *at = p[p.len() - 1];
+        out.push(p);
+    }
+    out
+}
+
+fn is_closed(p: &Polyline) -> bool {
+    p.len() > 3 && dist2(p[0], p[p.len() - 1]) < 1e-12
+}

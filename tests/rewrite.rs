@@ -1,0 +1,291 @@
+//! The Print-on-Air rewrite on the specimens, checked by simulating the deposition.
+
+mod common;
+
+use common::*;
+use geo::{Area, MultiPolygon};
+use printonair::check::{check_layer, CheckOptions, Support};
+use printonair::emit::{self, ObjectFilter, ProcessOptions, ProcessReport};
+use printonair::geometry::{self, difference, footprint, offset, printed_area, AreaOptions};
+use printonair::layers::{Layer, LayerKind, LayerReader, ReaderOptions, SlicerConfig};
+use printonair::poa::{BridgeMode, PoaSettings};
+use printonair::report;
+
+fn options(config: &SlicerConfig, bridges: BridgeMode) -> ProcessOptions {
+    ProcessOptions {
+        detect: report::detect_options(config),
+        settings: PoaSettings {
+            bridges,
+            ..Default::default()
+        },
+        objects: ObjectFilter::default(),
+        header: format!("{} test", emit::HEADER_MARK),
+    }
+}
+
+fn process(data: &[u8], bridges: BridgeMode) -> (Vec<u8>, ProcessReport) {
+    let config = SlicerConfig::parse(data);
+    let opts = options(&config, bridges);
+    let mut out = Vec::new();
+    let rep = emit::process(data, config, &opts, &mut out).unwrap();
+    (out, rep)
+}
+
+fn layers_of(data: &[u8]) -> Vec<Layer> {
+    let config = SlicerConfig::parse(data);
+    LayerReader::new(
+        data,
+        ReaderOptions {
+            keep_raw: true,
+            config,
+        },
+    )
+    .map(|l| l.unwrap())
+    .collect()
+}
+
+/// Line ranges (1-based, inclusive) of poa's blocks.
+fn poa_blocks(data: &[u8]) -> Vec<(u64, u64)> {
+    let mut v = Vec::new();
+    let mut open = None;
+    for (i, line) in data.split(|&b| b == b'\n').enumerate() {
+        let n = i as u64 + 1;
+        if line.starts_with(b";POA_BEGIN") {
+            open = Some(n);
+        } else if line.starts_with(b";POA_END") {
+            if let Some(s) = open.take() {
+                v.push((s, n));
+            }
+        }
+    }
+    v
+}
+
+fn point_in(area: &MultiPolygon<f64>, p: [f64; 2]) -> bool {
+    use geo::Contains;
+    area.contains(&geo::Point::new(p[0], p[1]))
+}
+
+fn footprint_by_e(layer: &Layer, fa: f64) -> MultiPolygon<f64> {
+    let paths: Vec<_> = layer
+        .paths
+        .iter()
+        .map(|p| {
+            let mut q = p.clone();
+            q.width = p.e_width(fa);
+            q
+        })
+        .collect();
+    footprint(paths.iter())
+}
+
+fn check_specimen(name: &str, suffix: &str) {
+    let original = read(&sample(&format!("{name}_prusa_{suffix}.gcode")));
+    let bridges = if name == "bridge" {
+        BridgeMode::Poa
+    } else {
+        BridgeMode::Keep
+    };
+    let (out, rep) = process(&original, bridges);
+    let what = format!("{name} {suffix}");
+    assert_eq!(rep.regions_rewritten, 1, "{what}: {rep:?}");
+    let blocks = poa_blocks(&out);
+    assert_eq!(blocks.len(), 1, "{what}");
+
+    let before = layers_of(&original);
+    let after = layers_of(&out);
+    assert_eq!(layer_count(&before), layer_count(&after), "{what}");
+    let fa = SlicerConfig::parse(&original).filament_diameter();
+    let fa = printonair::layers::filament_area(fa);
+
+    // Which layer was rewritten.
+    let (ai, layer) = after
+        .iter()
+        .enumerate()
+        .find(|(_, l)| {
+            l.kind == LayerKind::Layer && l.first_line <= blocks[0].0 && blocks[0].1 <= l.last_line
+        })
+        .expect("block inside a layer");
+    assert!(
+        (layer.z - 10.2).abs() < 1e-6,
+        "{what}: rewritten layer at {}",
+        layer.z
+    );
+    let below = &after[ai - 1];
+
+    // Every strand poa wrote rests on material deposited before it.
+    let opts = CheckOptions::default();
+    let c = check_layer(Some(below), layer, fa, &opts, true);
+    let poa_samples: Vec<_> = c
+        .samples
+        .iter()
+        .filter(|s| blocks.iter().any(|(a, b)| s.line >= *a && s.line <= *b))
+        .collect();
+    assert!(
+        poa_samples.len() > 1000,
+        "{what}: {} samples",
+        poa_samples.len()
+    );
+    let bad: Vec<_> = poa_samples
+        .iter()
+        .filter(|s| s.support != Support::Supported)
+        .collect();
+    assert!(
+        bad.is_empty(),
+        "{what}: {} of poa's samples unsupported, first at {:?} line {}",
+        bad.len(),
+        bad[0].point,
+        bad[0].line
+    );
+    // The layer as a whole.
+    let held = (c.supported_mm + c.bridged_mm) / c.length_mm;
+    assert!(held >= 0.99, "{what}: {held} supported or bridged, {c:?}");
+    assert!(
+        c.density >= 0.9 && c.density <= 1.6,
+        "{what}: density {}",
+        c.density
+    );
+
+    // Coverage of the region, and nothing outside the original outline.
+    let orig_layer = before
+        .iter()
+        .find(|l| l.kind == LayerKind::Layer && (l.z - layer.z).abs() < 1e-9)
+        .unwrap();
+    let orig_below = before
+        .iter()
+        .find(|l| l.kind == LayerKind::Layer && l.index + 1 == orig_layer.index)
+        .unwrap();
+    let area_opts = AreaOptions::default();
+    let sect_a = printed_area(orig_below, &area_opts);
+    let sect_b = printed_area(orig_layer, &area_opts);
+    let cfg = SlicerConfig::parse(&original);
+    let regions =
+        geometry::find_regions(&sect_a, orig_layer, &sect_b, &report::detect_options(&cfg));
+    assert_eq!(regions.len(), 1);
+    let region = MultiPolygon::new(vec![regions[0].polygon.clone()]);
+    // In air: nothing in or near the region. The slicer's own strands elsewhere on this layer
+    // (sparse infill ends over the sparse infill below) are left as they were, so they are
+    // measured on the original and allowed, on top of the 1 mm budget.
+    let near = offset(&region, 2.0);
+    let in_air_near = |c: &printonair::check::LayerCheck| -> f64 {
+        c.samples
+            .iter()
+            .filter(|s| s.support == Support::InAir && point_in(&near, s.point))
+            .map(|s| s.length)
+            .sum()
+    };
+    assert!(
+        in_air_near(&c) < 1e-9,
+        "{what}: {} mm in air near the region",
+        in_air_near(&c)
+    );
+    let orig_check = check_layer(Some(orig_below), orig_layer, fa, &opts, true);
+    let orig_elsewhere: f64 = orig_check
+        .samples
+        .iter()
+        .filter(|s| s.support == Support::InAir && !point_in(&near, s.point))
+        .map(|s| s.length)
+        .sum();
+    assert!(
+        c.in_air_mm <= 1.0 + orig_elsewhere + 1e-9,
+        "{what}: {} mm in air (the slicer left {} mm elsewhere) at {:?}",
+        c.in_air_mm,
+        orig_elsewhere,
+        c.longest_in_air_at
+    );
+    let fp = footprint_by_e(layer, fa);
+    let uncovered = difference(&region, &fp).unsigned_area();
+    assert!(
+        uncovered < 0.02 * regions[0].area,
+        "{what}: {uncovered} mm2 of {} uncovered",
+        regions[0].area
+    );
+    let outside = difference(&fp, &offset(&sect_b, 0.1)).unsigned_area();
+    assert!(outside < 0.05, "{what}: {outside} mm2 outside the outline");
+
+    // Other layers byte for byte; the rewritten layer keeps every line it did not split.
+    let header_len = out.len() - original.len();
+    let _ = header_len;
+    for (b, a) in before.iter().zip(&after) {
+        if a.first_line == layer.first_line || b.kind == LayerKind::Preamble {
+            continue;
+        }
+        assert!(a.raw == b.raw, "{what}: layer {} changed", b.index + 1);
+    }
+    let split: Vec<&[u8]> = layer
+        .raw
+        .split(|&c| c == b'\n')
+        .filter_map(|l| l.strip_prefix(b"; poa: split "))
+        .collect();
+    let mut out_lines = layer.raw.split(|&c| c == b'\n');
+    for line in orig_layer.raw.split(|&c| c == b'\n') {
+        if split.iter().any(|s| *s == line.trim_ascii()) {
+            continue;
+        }
+        assert!(
+            out_lines.any(|l| l == line),
+            "{what}: kept line {:?} missing",
+            String::from_utf8_lossy(line)
+        );
+    }
+}
+
+#[test]
+fn rect_overhang_relative_and_absolute() {
+    check_specimen("rect_overhang", "rel");
+    check_specimen("rect_overhang", "abs");
+}
+
+#[test]
+fn circ_overhang_relative_and_absolute() {
+    check_specimen("circ_overhang", "rel");
+    check_specimen("circ_overhang", "abs");
+}
+
+#[test]
+fn tri_overhang_relative_and_absolute() {
+    check_specimen("tri_overhang", "rel");
+    check_specimen("tri_overhang", "abs");
+}
+
+#[test]
+fn bridge_with_bridges_poa_relative_and_absolute() {
+    check_specimen("bridge", "rel");
+    check_specimen("bridge", "abs");
+}
+
+#[test]
+fn bridges_are_kept_by_default() {
+    let original = read(&sample("bridge_prusa_rel.gcode"));
+    let (out, rep) = process(&original, BridgeMode::Keep);
+    assert_eq!(rep.regions_rewritten, 0);
+    assert_eq!(rep.skipped.len(), 1);
+    assert!(poa_blocks(&out).is_empty());
+}
+
+#[test]
+fn filament_bookkeeping_is_exact_in_both_e_modes() {
+    for suffix in ["rel", "abs"] {
+        let original = read(&sample(&format!("rect_overhang_prusa_{suffix}.gcode")));
+        let (out, rep) = process(&original, BridgeMode::Keep);
+        let total = |d: &[u8]| -> f64 {
+            layers_of(d)
+                .iter()
+                .flat_map(|l| &l.paths)
+                .map(|p| p.e())
+                .sum()
+        };
+        let (a, b) = (total(&original), total(&out));
+        let s = &rep.rewrites[0];
+        let expected = a - s.removed_filament_mm + s.written_filament_mm;
+        assert!((b - expected).abs() < 1e-3, "{suffix}: {b} vs {expected}");
+    }
+}
+
+#[test]
+fn running_twice_changes_nothing() {
+    let original = read(&sample("rect_overhang_prusa_rel.gcode"));
+    let (out, _) = process(&original, BridgeMode::Keep);
+    assert!(emit::already_processed(&out[..out.len().min(65536)]));
+    assert!(!emit::already_processed(&original[..65536]));
+}
