@@ -1,0 +1,232 @@
+//! `poa FILE` as slicers run it, `poa process`, and what happens when things go wrong.
+
+mod common;
+
+use std::process::{Command, Output};
+
+use common::*;
+
+fn poa() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_poa"));
+    for (k, _) in std::env::vars() {
+        if k.starts_with("SLIC3R_") {
+            c.env_remove(k);
+        }
+    }
+    c
+}
+
+fn run(args: &[&str]) -> Output {
+    poa().args(args).output().unwrap()
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).to_string()
+}
+
+fn copy_sample(dir: &std::path::Path, name: &str) -> std::path::PathBuf {
+    let p = dir.join(name);
+    std::fs::copy(sample(name), &p).unwrap();
+    p
+}
+
+fn count(data: &[u8], needle: &str) -> usize {
+    String::from_utf8_lossy(data).matches(needle).count()
+}
+
+#[test]
+fn rewrites_in_place_and_a_second_run_changes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let f = copy_sample(dir.path(), "rect_overhang_prusa_rel.gcode");
+    let o = run(&[f.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let once = std::fs::read(&f).unwrap();
+    assert_eq!(count(&once, ";POA_BEGIN"), 1);
+    assert!(String::from_utf8_lossy(&once)
+        .lines()
+        .nth(1)
+        .unwrap()
+        .starts_with("; poa print-on-air"));
+    let o = run(&[f.to_str().unwrap()]);
+    assert!(o.status.success());
+    assert_eq!(std::fs::read(&f).unwrap(), once);
+    // No temporary file is left behind.
+    let names: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(names.len(), 1, "{names:?}");
+}
+
+#[test]
+fn options_come_before_the_path() {
+    let dir = tempfile::tempdir().unwrap();
+    let f = copy_sample(dir.path(), "bridge_prusa_rel.gcode");
+    let o = run(&["--bridges", "poa", "--fan", "80", f.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let data = std::fs::read(&f).unwrap();
+    assert_eq!(count(&data, ";POA_BEGIN"), 1);
+    assert!(count(&data, "M106 S204") >= 1, "fan at 80 %");
+    assert!(String::from_utf8_lossy(&data).contains("fan 80%"));
+}
+
+#[test]
+fn settings_from_the_slicer_environment() {
+    // The slicer exports its settings; the file's own block says the same, the environment wins.
+    let dir = tempfile::tempdir().unwrap();
+    let f = copy_sample(dir.path(), "rect_overhang_prusa_rel.gcode");
+    let o = poa()
+        .env("SLIC3R_BRIDGE_SPEED", "12")
+        .arg(&f)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let data = std::fs::read_to_string(&f).unwrap();
+    assert!(
+        data.contains("loop speed 12 mm/s"),
+        "header records the loop speed"
+    );
+    assert!(data.contains("G1 F720\n"), "loops at 12 mm/s");
+}
+
+#[test]
+fn refused_files_are_left_untouched() {
+    let dir = tempfile::tempdir().unwrap();
+    let junk = dir.path().join("junk.gcode");
+    let bytes: Vec<u8> = (0..20_000u32)
+        .map(|i| (i.wrapping_mul(2_654_435_761) >> 13) as u8)
+        .collect();
+    std::fs::write(&junk, &bytes).unwrap();
+    let o = run(&[junk.to_str().unwrap()]);
+    assert!(!o.status.success());
+    assert_ne!(o.status.code(), Some(101));
+    let msg = stderr(&o);
+    assert!(
+        msg.starts_with("poa: ") && msg.trim().lines().count() <= 2,
+        "{msg}"
+    );
+    assert_eq!(std::fs::read(&junk).unwrap(), bytes);
+
+    let bg = dir.path().join("x.gcode.pp");
+    std::fs::write(&bg, b"GCDE\x01\x00\x00\x00\x01\x00rest").unwrap();
+    let o = run(&[bg.to_str().unwrap()]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("binary G-code"), "{}", stderr(&o));
+
+    // A bad setting is refused before anything is written.
+    let f = copy_sample(dir.path(), "rect_overhang_prusa_rel.gcode");
+    let before = std::fs::read(&f).unwrap();
+    let o = run(&["--overlap", "5", f.to_str().unwrap()]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("--overlap"), "{}", stderr(&o));
+    assert_eq!(std::fs::read(&f).unwrap(), before);
+}
+
+#[test]
+fn a_failed_write_leaves_the_original_and_no_temp_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let f = copy_sample(dir.path(), "rect_overhang_prusa_rel.gcode");
+    let before = std::fs::read(&f).unwrap();
+    // The file-size limit makes every write past 64 KiB fail with EFBIG, like a full disk.
+    let o = Command::new("bash")
+        .arg("-c")
+        .arg("trap '' XFSZ; ulimit -f 64; exec \"$0\" \"$@\"")
+        .arg(env!("CARGO_BIN_EXE_poa"))
+        .arg(&f)
+        .output()
+        .unwrap();
+    assert!(!o.status.success(), "the write should fail");
+    let msg = stderr(&o);
+    assert!(msg.starts_with("poa: cannot write"), "{msg}");
+    assert!(msg.trim().lines().count() <= 2, "{msg}");
+    assert_eq!(std::fs::read(&f).unwrap(), before);
+    let names: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(names.len(), 1, "temp file left: {names:?}");
+
+    // An output folder that does not exist.
+    let o = run(&[
+        "process",
+        f.to_str().unwrap(),
+        "-o",
+        "/nonexistent-poa/out.gcode",
+    ]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("cannot write"), "{}", stderr(&o));
+    assert_eq!(std::fs::read(&f).unwrap(), before);
+}
+
+#[test]
+fn process_dry_run_report_and_object_filters() {
+    let dir = tempfile::tempdir().unwrap();
+    let f = sample("rect_overhang_prusa_abs.gcode");
+    let report = dir.path().join("r.json");
+    let o = run(&[
+        "process",
+        f.to_str().unwrap(),
+        "--dry-run",
+        "--report",
+        report.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.contains("1 rewritten"), "{out}");
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    let r = &v["files"][0]["report"]["rewrites"][0];
+    assert!(r["loops"].as_u64().unwrap() > 100);
+    assert!(r["written_filament_mm"].as_f64().unwrap() > 0.0);
+    assert!(r.get("time_added_s").is_some());
+
+    let out_file = dir.path().join("o.gcode");
+    let o = run(&[
+        "process",
+        f.to_str().unwrap(),
+        "-o",
+        out_file.to_str().unwrap(),
+        "--skip-objects",
+        "rect_*",
+    ]);
+    assert!(o.status.success());
+    let data = std::fs::read(&out_file).unwrap();
+    assert_eq!(count(&data, ";POA_BEGIN"), 0, "object skipped");
+    let o = run(&[
+        "process",
+        f.to_str().unwrap(),
+        "-o",
+        out_file.to_str().unwrap(),
+        "--objects",
+        "rect_overhang.stl*",
+    ]);
+    assert!(o.status.success());
+    assert_eq!(count(&std::fs::read(&out_file).unwrap(), ";POA_BEGIN"), 1);
+}
+
+#[test]
+fn end_to_end_through_prusaslicer() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("part with space.gcode");
+    let stl = shared().join("specimens/tri_overhang.stl");
+    let config = repo().join("sample-gcode/config/prusaslicer-mk3s-pla.ini");
+    let poa_cmd = format!("\"{}\" --fan 90", env!("CARGO_BIN_EXE_poa"));
+    let o = Command::new("prusa-slicer")
+        .arg("--load")
+        .arg(&config)
+        .arg("--export-gcode")
+        .arg("-o")
+        .arg(&out)
+        .arg("--post-process")
+        .arg(&poa_cmd)
+        .arg(&stl)
+        .output()
+        .expect("prusa-slicer must be installed (apt-get install -y prusa-slicer)");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let data = std::fs::read(&out).unwrap();
+    assert_eq!(count(&data, ";POA_BEGIN"), 1);
+    assert!(count(&data, "M106 S229") >= 1, "fan at 90 %");
+    // The rewritten file is still one the pipeline reads with the same layers.
+    let (layers, _) = read_layers(&data, false);
+    assert_eq!(layer_count(&layers), 75);
+}
