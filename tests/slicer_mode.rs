@@ -226,7 +226,7 @@ fn end_to_end_through_prusaslicer() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let data = std::fs::read(&out).unwrap();
     assert_eq!(count(&data, ";POA_BEGIN"), 1);
-    assert!(count(&data, "M106 S229") >= 1, "fan at 90 %");
+    assert!(count(&data, "M106 S230") >= 1, "fan at 90 %");
     // The rewritten file is still one the pipeline reads with the same layers.
     let (layers, _) = read_layers(&data, false);
     assert_eq!(layer_count(&layers), 75);
