@@ -31,4 +31,7 @@ print(f'{sys.argv[4]:<12} {s:7.2f} s {b/1048576/max(s,1e-3):8.1f} MB/s  peak RSS
 }
 run "cp" cp "$plate" bench-data/copy.gcode
 run "poa info" target/release/poa info "$plate"
-rm -f bench-data/copy.gcode
+run "poa analyze" target/release/poa analyze "$plate"
+run "poa process" target/release/poa process "$plate" -o bench-data/out.gcode
+run "poa check" target/release/poa check "$plate"
+rm -f bench-data/copy.gcode bench-data/out.gcode
