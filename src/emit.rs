@@ -294,6 +294,11 @@ pub fn rewrite_layer(
     replaceable.dedup();
 
     let nl = line_end(&layer.raw);
+    // Zone bounding boxes: most lines are nowhere near a zone.
+    let boxes: Vec<Option<geo::Rect<f64>>> = rewrites
+        .iter()
+        .map(|r| geo::BoundingRect::bounding_rect(&r.plan.zone))
+        .collect();
     let mut machine: Machine = start.clone();
     let mut out = Vec::with_capacity(layer.raw.len() + 64 * 1024);
     let mut stats: Vec<RewriteStats> = rewrites
@@ -325,9 +330,26 @@ pub fn rewrite_layer(
         if let Action::Move(m) = &action {
             if m.is_extrusion() && replaceable.binary_search(&number).is_ok() {
                 let pts = m.points(0.01);
+                let (lo, hi) = pts.iter().fold(
+                    ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]),
+                    |(lo, hi), p| {
+                        (
+                            [lo[0].min(p[0]), lo[1].min(p[1])],
+                            [hi[0].max(p[0]), hi[1].max(p[1])],
+                        )
+                    },
+                );
                 let hits: Vec<(usize, Vec<(f64, f64)>)> = rewrites
                     .iter()
                     .enumerate()
+                    .filter(|(i, _)| {
+                        boxes[*i].is_some_and(|b| {
+                            hi[0] >= b.min().x
+                                && lo[0] <= b.max().x
+                                && hi[1] >= b.min().y
+                                && lo[1] <= b.max().y
+                        })
+                    })
                     .map(|(i, r)| (i, inside_intervals(&pts, &r.plan.zone)))
                     .filter(|(_, iv)| !iv.is_empty())
                     .collect();
@@ -886,7 +908,8 @@ pub fn process<R: BufRead, W: Write>(
         if layer.kind == crate::layers::LayerKind::Layer {
             report.layers += 1;
         }
-        let mut rewrites = Vec::new();
+        // Decide which regions to rewrite, then plan them on all cores.
+        let mut chosen: Vec<(usize, &crate::geometry::Region)> = Vec::new();
         for r in &d.regions {
             next_id += 1;
             report.regions_found += 1;
@@ -903,34 +926,47 @@ pub fn process<R: BufRead, W: Write>(
                     _ => "floating: nothing below to grow loops from",
                 };
                 report.skipped.push(skip(why));
-                continue;
-            }
-            if !opts.objects.allows(object.as_deref()) {
+            } else if !opts.objects.allows(object.as_deref()) {
                 report
                     .skipped
                     .push(skip("object excluded by --objects/--skip-objects"));
-                continue;
+            } else {
+                chosen.push((next_id, r));
             }
-            let start = layer
-                .start
-                .as_ref()
-                .map(|m| [m.position()[0], m.position()[1]])
-                .unwrap_or([0.0, 0.0]);
-            let widths = crate::poa::Widths {
-                loop_width,
-                perimeter_width: loop_width,
-                tolerance: opts.detect.tolerance_at(layer.height),
-            };
-            let plan = crate::poa::plan(r, &d.below, &d.area, widths, &opts.settings, start);
+        }
+        let start = layer
+            .start
+            .as_ref()
+            .map(|m| [m.position()[0], m.position()[1]])
+            .unwrap_or([0.0, 0.0]);
+        let widths = crate::poa::Widths {
+            loop_width,
+            perimeter_width: loop_width,
+            tolerance: opts.detect.tolerance_at(layer.height),
+        };
+        let plans: Vec<(usize, RegionKind, Plan)> = {
+            use rayon::prelude::*;
+            chosen
+                .par_iter()
+                .map(|(id, r)| {
+                    let plan =
+                        crate::poa::plan(r, &d.below, &d.area, widths, &opts.settings, start);
+                    (*id, r.kind, plan)
+                })
+                .collect()
+        };
+        let mut rewrites = Vec::new();
+        for (id, kind, plan) in plans {
             if plan.strands.is_empty() {
-                report.skipped.push(skip("no loop fits"));
-                continue;
+                report.skipped.push(SkippedRegion {
+                    region: id,
+                    layer: layer.index + 1,
+                    kind,
+                    reason: "no loop fits".into(),
+                });
+            } else {
+                rewrites.push(RegionRewrite { id, kind, plan });
             }
-            rewrites.push(RegionRewrite {
-                id: next_id,
-                kind: r.kind,
-                plan,
-            });
         }
         let bytes = if rewrites.is_empty() {
             std::borrow::Cow::Borrowed(&layer.raw)
