@@ -39,6 +39,23 @@ pub fn offset(mp: &MultiPolygon<f64>, delta: f64) -> MultiPolygon<f64> {
     )
 }
 
+/// Grows `front` by `step` and cuts it back to `allowed`, with Clipper's exact integer
+/// arithmetic and a light simplification, so that repeating it keeps the front clean and its
+/// vertex count bounded (a float boolean engine snaps to its own grid and adds jitter).
+pub fn grow_within(
+    front: &MultiPolygon<f64>,
+    step: f64,
+    allowed: &MultiPolygon<f64>,
+) -> MultiPolygon<f64> {
+    use geo::Simplify;
+    if front.0.is_empty() || allowed.0.is_empty() {
+        return MultiPolygon::new(Vec::new());
+    }
+    let grown = offset(front, step);
+    let cut = Clipper::intersection(&grown, allowed, CLIPPER_SCALE);
+    Simplify::simplify(&cut, ARC_TOLERANCE / 2.0)
+}
+
 /// Morphological opening: removes every part narrower than `2 r`, keeps the rest's shape
 /// (up to rounding of convex corners by `r`).
 pub fn opening(mp: &MultiPolygon<f64>, r: f64) -> MultiPolygon<f64> {
@@ -89,6 +106,16 @@ pub fn difference(a: &MultiPolygon<f64>, b: &MultiPolygon<f64>) -> MultiPolygon<
         return a.clone();
     }
     geo::BooleanOps::difference(a, b)
+}
+
+pub fn union(a: &MultiPolygon<f64>, b: &MultiPolygon<f64>) -> MultiPolygon<f64> {
+    if a.0.is_empty() {
+        return b.clone();
+    }
+    if b.0.is_empty() {
+        return a.clone();
+    }
+    geo::BooleanOps::union(a, b)
 }
 
 pub fn intersection(a: &MultiPolygon<f64>, b: &MultiPolygon<f64>) -> MultiPolygon<f64> {

@@ -3,22 +3,24 @@
 //! Input: a [`Region`] of layer i, the printed area of layer i-1 (sectA) and of layer i
 //! (sectB), and the [`PoaSettings`]. Output: a [`Plan`]: the zone whose original extrusions are
 //! taken out, and the strands that replace them, in print order:
-//! 1. loops: offsets of sectA at `k x step - w/2` (k = 1, 2, ...; step = (1 - overlap) x w),
-//!    so that loop 1 bites `overlap x w` into the wall below and each loop bites as much into
-//!    the previous one; clipped to the zone minus the band of its external perimeter;
+//! 1. loops: fronts at `k x step - w/2` from sectA (k = 1, 2, ...; step = (1 - overlap) x w),
+//!    measured inside the zone (a front wraps around a hole rather than jumping it), so that
+//!    loop 1 bites `overlap x w` into the wall below and each loop bites as much into the
+//!    previous one; clipped to the zone minus the band of its external perimeter;
 //! 2. one contour along the loops' outer clip edge, so the perimeter has material beside it;
 //! 3. the external perimeter of the zone, pulled inward by `perimeter_inset`, convex corners
 //!    rounded.
 //!
 //! Invariants: every strand lies inside the zone; each strand's start is chosen near where the
-//! previous one ended. Offsets always start from sectA itself (never from the previous loop),
-//! so vertex counts do not grow from loop to loop.
+//! previous one ended. Fronts are grown with Clipper and cut back to the zone at every step,
+//! which keeps their vertex count bounded by the zone's.
 
 use geo::{Area, MultiPolygon};
 use serde::Serialize;
 
 use crate::geometry::{
-    clip_lines, difference, intersection, offset, opening, rings, Polyline, Region, RegionKind,
+    clip_lines, difference, grow_within, intersection, offset, opening, rings, union, Polyline,
+    Region, RegionKind,
 };
 
 /// What to do with regions anchored on two or more sides.
@@ -180,20 +182,30 @@ pub fn plan(
     let near_below = offset(&below_loc, w / 2.0);
     let contour = clip_lines(&rings(&inner), &near_below, false);
 
+    // Fronts grow inside the zone only (a geodesic offset): past a hole in the region they
+    // wrap around it instead of jumping across, so every loop lies beside the previous one.
+    // Each front is the previous one grown by one step and cut back to where loops may go.
+    let first = offset(&below_loc, step - w / 2.0);
+    let allowed = union(&inner, &first);
+    // Ring parts on the cut are not fronts: clip to just inside the loop area.
+    let strictly_inner = offset(&inner, -0.01);
     let mut loops: Vec<Vec<Polyline>> = Vec::new();
-    let mut k = 1;
-    loop {
-        let d = k as f64 * step - w / 2.0;
-        if d > reach {
-            break;
-        }
-        let grown = offset(&below_loc, d);
-        let pieces: Vec<Polyline> = clip_lines(&rings(&grown), &inner, true)
+    let mut front = first;
+    let max_loops = (reach / step).ceil() as usize + 2;
+    for _ in 0..max_loops {
+        let pieces: Vec<Polyline> = clip_lines(&rings(&front), &strictly_inner, true)
             .into_iter()
             .filter(|p| polyline_length(p) >= w / 2.0)
             .collect();
+        if pieces.is_empty() && !loops.is_empty() {
+            break;
+        }
         loops.push(pieces);
-        k += 1;
+        let next = grow_within(&front, step, &allowed);
+        if (next.unsigned_area() - front.unsigned_area()).abs() < 1e-6 {
+            break;
+        }
+        front = next;
     }
     while loops.last().is_some_and(|l| l.is_empty()) {
         loops.pop();

@@ -93,3 +93,103 @@ pub fn slice(specimen: &str, args: &[&str]) -> Vec<u8> {
     );
     read(&out)
 }
+
+/// A triangle mesh written as ASCII STL, for test parts made on the fly.
+#[derive(Default)]
+pub struct Mesh {
+    tris: Vec<[[f64; 3]; 3]>,
+}
+
+impl Mesh {
+    /// An axis-aligned box.
+    pub fn cuboid(&mut self, a: [f64; 3], b: [f64; 3]) -> &mut Self {
+        let p = |i: usize| {
+            [
+                if i & 1 == 0 { a[0] } else { b[0] },
+                if i & 2 == 0 { a[1] } else { b[1] },
+                if i & 4 == 0 { a[2] } else { b[2] },
+            ]
+        };
+        // Faces as quads of corner indices, outward winding.
+        for q in [
+            [0, 2, 3, 1],
+            [4, 5, 7, 6],
+            [0, 1, 5, 4],
+            [2, 6, 7, 3],
+            [0, 4, 6, 2],
+            [1, 3, 7, 5],
+        ] {
+            self.tris.push([p(q[0]), p(q[1]), p(q[2])]);
+            self.tris.push([p(q[0]), p(q[2]), p(q[3])]);
+        }
+        self
+    }
+
+    /// A vertical prism over a polygon (counter-clockwise), from z0 to z1.
+    pub fn prism(&mut self, poly: &[[f64; 2]], z0: f64, z1: f64) -> &mut Self {
+        let n = poly.len();
+        let c = poly.iter().fold([0.0, 0.0], |s, p| {
+            [s[0] + p[0] / n as f64, s[1] + p[1] / n as f64]
+        });
+        for i in 0..n {
+            let (p, q) = (poly[i], poly[(i + 1) % n]);
+            self.tris
+                .push([[c[0], c[1], z1], [p[0], p[1], z1], [q[0], q[1], z1]]);
+            self.tris
+                .push([[c[0], c[1], z0], [q[0], q[1], z0], [p[0], p[1], z0]]);
+            self.tris
+                .push([[p[0], p[1], z0], [q[0], q[1], z0], [q[0], q[1], z1]]);
+            self.tris
+                .push([[p[0], p[1], z0], [q[0], q[1], z1], [p[0], p[1], z1]]);
+        }
+        self
+    }
+
+    pub fn cylinder(&mut self, c: [f64; 2], r: f64, z0: f64, z1: f64) -> &mut Self {
+        let poly: Vec<[f64; 2]> = (0..96)
+            .map(|i| {
+                let a = std::f64::consts::TAU * i as f64 / 96.0;
+                [c[0] + r * a.cos(), c[1] + r * a.sin()]
+            })
+            .collect();
+        self.prism(&poly, z0, z1)
+    }
+
+    pub fn write(&self, path: &Path) {
+        let mut s = String::from("solid poa_test\n");
+        for t in &self.tris {
+            s.push_str("facet normal 0 0 0\n outer loop\n");
+            for v in t {
+                s.push_str(&format!("  vertex {} {} {}\n", v[0], v[1], v[2]));
+            }
+            s.push_str(" endloop\nendfacet\n");
+        }
+        s.push_str("endsolid poa_test\n");
+        std::fs::write(path, s).unwrap();
+    }
+}
+
+/// Slices a mesh with PrusaSlicer's CLI and the samples' config plus `args`.
+pub fn slice_mesh(mesh: &Mesh, args: &[&str]) -> Vec<u8> {
+    let dir = tempfile::tempdir().unwrap();
+    let stl = dir.path().join("part.stl");
+    mesh.write(&stl);
+    let out = dir.path().join("out.gcode");
+    let config = repo().join("sample-gcode/config/prusaslicer-mk3s-pla.ini");
+    let o = std::process::Command::new("prusa-slicer")
+        .arg("--load")
+        .arg(&config)
+        .args(args)
+        .arg("--export-gcode")
+        .arg("-o")
+        .arg(&out)
+        .arg(&stl)
+        .output()
+        .expect("prusa-slicer must be installed for this test (apt-get install -y prusa-slicer)");
+    assert!(
+        o.status.success(),
+        "prusa-slicer failed: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    read(&out)
+}
