@@ -411,9 +411,38 @@ impl Machine {
 
     /// Resolves the target of X/Y/Z/E words; returns (target xyz, e delta).
     fn target(&mut self, p: &Parsed<'_>, line: u64) -> (Vec3, f64) {
+        // One pass over the words (this is the hottest path of the reader); the first
+        // occurrence of a letter wins, as `Parsed::get` would have it.
+        let mut vals: [Option<f64>; 5] = [None; 5];
+        for w in &p.words {
+            let slot = match w.letter {
+                b'X' => 0,
+                b'Y' => 1,
+                b'Z' => 2,
+                b'E' => 3,
+                b'F' => 4,
+                _ => continue,
+            };
+            if vals[slot].is_none() {
+                vals[slot] = Some(w.value);
+            }
+        }
+        for (slot, v) in vals.iter_mut().enumerate() {
+            if let Some(x) = *v {
+                if !(x.is_finite() && x.abs() * self.unit <= MAX_COORD_MM) {
+                    let letter = [b'X', b'Y', b'Z', b'E', b'F'][slot] as char;
+                    self.diagnostics.add("bad-number", line, || {
+                        format!(
+                            "line {line}: {letter}{x} is not a usable number; the word was ignored"
+                        )
+                    });
+                    *v = None;
+                }
+            }
+        }
         let mut to = self.pos;
-        for (i, l) in [b'X', b'Y', b'Z'].into_iter().enumerate() {
-            if let Some(v) = self.word(p, l, line) {
+        for i in 0..3 {
+            if let Some(v) = vals[i] {
                 let v = v * self.unit;
                 to[i] = if self.xyz_relative {
                     self.pos[i] + v
@@ -423,7 +452,7 @@ impl Machine {
             }
         }
         let mut e = 0.0;
-        if let Some(v) = self.word(p, b'E', line) {
+        if let Some(v) = vals[3] {
             let v = v * self.unit;
             if self.e_relative() {
                 e = v;
@@ -433,7 +462,7 @@ impl Machine {
                 self.e_logical = v;
             }
         }
-        if let Some(f) = self.word(p, b'F', line) {
+        if let Some(f) = vals[4] {
             if f > 0.0 {
                 self.feed = f * self.unit;
             }
