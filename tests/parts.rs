@@ -41,22 +41,6 @@ fn layers_of(data: &[u8]) -> Vec<Layer> {
     .collect()
 }
 
-fn blocks(data: &[u8]) -> Vec<(u64, u64)> {
-    let mut v = Vec::new();
-    let mut open = None;
-    for (i, line) in data.split(|&b| b == b'\n').enumerate() {
-        let n = i as u64 + 1;
-        if line.starts_with(b";POA_BEGIN") {
-            open = Some(n);
-        } else if line.starts_with(b";POA_END") {
-            if let Some(s) = open.take() {
-                v.push((s, n));
-            }
-        }
-    }
-    v
-}
-
 /// Processes `data` and checks every rewritten layer. Returns the number of regions rewritten.
 fn rewrite_and_check(data: &[u8], what: &str) -> usize {
     let (out, rep) = process(data);
@@ -67,7 +51,7 @@ fn rewrite_and_check(data: &[u8], what: &str) -> usize {
         std::fs::write(format!("{dir}/{name}.poa.gcode"), &out).unwrap();
     }
     let fa = filament_area(SlicerConfig::parse(data).filament_diameter());
-    let bl = blocks(&out);
+    let bl = poa_blocks(&out);
     assert_eq!(bl.len(), rep.regions_rewritten, "{what}");
     let layers = layers_of(&out);
     let opts = CheckOptions::default();

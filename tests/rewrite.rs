@@ -44,23 +44,6 @@ fn layers_of(data: &[u8]) -> Vec<Layer> {
     .collect()
 }
 
-/// Line ranges (1-based, inclusive) of poa's blocks.
-fn poa_blocks(data: &[u8]) -> Vec<(u64, u64)> {
-    let mut v = Vec::new();
-    let mut open = None;
-    for (i, line) in data.split(|&b| b == b'\n').enumerate() {
-        let n = i as u64 + 1;
-        if line.starts_with(b";POA_BEGIN") {
-            open = Some(n);
-        } else if line.starts_with(b";POA_END") {
-            if let Some(s) = open.take() {
-                v.push((s, n));
-            }
-        }
-    }
-    v
-}
-
 fn point_in(area: &MultiPolygon<f64>, p: [f64; 2]) -> bool {
     use geo::Contains;
     area.contains(&geo::Point::new(p[0], p[1]))

@@ -71,27 +71,51 @@ pub fn shared() -> PathBuf {
 
 /// Slices a specimen with PrusaSlicer's CLI and the samples' config plus `args`.
 pub fn slice(specimen: &str, args: &[&str]) -> Vec<u8> {
+    slice_stl(
+        &shared().join("specimens").join(format!("{specimen}.stl")),
+        args,
+    )
+}
+
+/// Slices an STL with PrusaSlicer's CLI and the samples' config plus `args`.
+pub fn slice_stl(stl: &Path, args: &[&str]) -> Vec<u8> {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("out.gcode");
-    let stl = shared().join("specimens").join(format!("{specimen}.stl"));
     let config = repo().join("sample-gcode/config/prusaslicer-mk3s-pla.ini");
-    let status = std::process::Command::new("prusa-slicer")
+    let o = std::process::Command::new("prusa-slicer")
         .arg("--load")
         .arg(&config)
         .args(args)
         .arg("--export-gcode")
         .arg("-o")
         .arg(&out)
-        .arg(&stl)
-        .stdout(std::process::Stdio::null())
-        .stderr(std::process::Stdio::null())
-        .status()
+        .arg(stl)
+        .output()
         .expect("prusa-slicer must be installed for this test (apt-get install -y prusa-slicer)");
     assert!(
-        status.success(),
-        "prusa-slicer failed on {specimen} {args:?}"
+        o.status.success(),
+        "prusa-slicer failed on {} {args:?}: {}",
+        stl.display(),
+        String::from_utf8_lossy(&o.stderr)
     );
     read(&out)
+}
+
+/// Line ranges (1-based, inclusive) of the blocks poa wrote.
+pub fn poa_blocks(data: &[u8]) -> Vec<(u64, u64)> {
+    let mut v = Vec::new();
+    let mut open = None;
+    for (i, line) in data.split(|&b| b == b'\n').enumerate() {
+        let n = i as u64 + 1;
+        if line.starts_with(b";POA_BEGIN") {
+            open = Some(n);
+        } else if line.starts_with(b";POA_END") {
+            if let Some(s) = open.take() {
+                v.push((s, n));
+            }
+        }
+    }
+    v
 }
 
 /// A triangle mesh written as ASCII STL, for test parts made on the fly.
@@ -174,22 +198,5 @@ pub fn slice_mesh(mesh: &Mesh, args: &[&str]) -> Vec<u8> {
     let dir = tempfile::tempdir().unwrap();
     let stl = dir.path().join("part.stl");
     mesh.write(&stl);
-    let out = dir.path().join("out.gcode");
-    let config = repo().join("sample-gcode/config/prusaslicer-mk3s-pla.ini");
-    let o = std::process::Command::new("prusa-slicer")
-        .arg("--load")
-        .arg(&config)
-        .args(args)
-        .arg("--export-gcode")
-        .arg("-o")
-        .arg(&out)
-        .arg(&stl)
-        .output()
-        .expect("prusa-slicer must be installed for this test (apt-get install -y prusa-slicer)");
-    assert!(
-        o.status.success(),
-        "prusa-slicer failed: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    read(&out)
+    slice_stl(&stl, args)
 }
