@@ -699,6 +699,16 @@ fn emit_block(
         "M106 S{}",
         fmt_num((settings.fan.clamp(0.0, 1.0) * 255.0).round(), 0)
     ));
+    // A temperature change only when the file says what the temperature is.
+    let temp = before
+        .hotend_temp
+        .filter(|t| *t > 0.0 && settings.temperature_offset != 0.0);
+    if let Some(t) = temp {
+        w.line(&format!(
+            "M104 S{}",
+            fmt_num((t + settings.temperature_offset).max(0.0), 0)
+        ));
+    }
     let mut width_tag = f64::NAN;
     let mut last_loop = 0;
     for (i, s) in plan.strands.iter().enumerate() {
@@ -732,7 +742,10 @@ fn emit_block(
         write_strand(&mut w, s, per_mm, stats);
         time += s.length() / speed;
     }
-    // Restore fan, position, retraction, feedrate, E counter and the slicer's tags.
+    // Restore temperature, fan, position, retraction, feedrate, E counter and the slicer's tags.
+    if let Some(t) = temp {
+        w.line(&format!("M104 S{}", fmt_num(t, 0)));
+    }
     let fan = (before.fan * 255.0).round();
     if fan <= 0.0 {
         w.line("M107");

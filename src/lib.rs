@@ -18,5 +18,6 @@ pub mod output;
 pub mod poa;
 pub mod preview;
 pub mod report;
+pub mod settings;
 
 pub use error::Error;

@@ -213,6 +213,8 @@ pub struct Machine {
     pub retracted: f64,
     /// G10 in force.
     pub firmware_retracted: bool,
+    /// Hotend target temperature of the active tool (M104/M109 S), when the file set one.
+    pub hotend_temp: Option<f64>,
 }
 
 impl Default for Machine {
@@ -233,6 +235,7 @@ impl Default for Machine {
             inches_seen: false,
             retracted: 0.0,
             firmware_retracted: false,
+            hotend_temp: None,
         }
     }
 }
@@ -380,6 +383,16 @@ impl Machine {
                 let s = self.word(p, b'S', line).unwrap_or(255.0);
                 self.fan = (s / 255.0).clamp(0.0, 1.0);
                 Action::Fan(self.fan)
+            }
+            (b'M', 104 | 109) => {
+                // M104 T1 sets another tool; only the active tool's target matters here.
+                let other_tool = p.get(b'T').is_some_and(|t| t as u32 != self.tool);
+                if let (Some(t), false) = (p.get(b'S').or_else(|| p.get(b'R')), other_tool) {
+                    if t.is_finite() && (0.0..1000.0).contains(&t) {
+                        self.hotend_temp = Some(t);
+                    }
+                }
+                Action::None
             }
             (b'M', 107) => {
                 self.fan = 0.0;

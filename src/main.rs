@@ -7,10 +7,9 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 
 use printonair::emit::{self, ObjectFilter, ProcessOptions, ProcessReport};
-use printonair::geometry::{DetectOptions, Tolerance};
+use printonair::geometry::DetectOptions;
 use printonair::layers::SlicerConfig;
-use printonair::poa::{BridgeMode, PoaSettings};
-use printonair::{input, output, preview, report};
+use printonair::{input, output, preview, report, settings};
 
 #[derive(Parser)]
 #[command(
@@ -68,6 +67,20 @@ enum Command {
         #[command(flatten)]
         rewrite: RewriteArgs,
     },
+    /// List the built-in settings profiles, or print one as YAML to copy and edit.
+    Profiles {
+        #[command(subcommand)]
+        action: Option<ProfilesAction>,
+    },
+    /// Print the settings in force for a file and where each comes from.
+    Config {
+        file: PathBuf,
+        /// Machine-readable output.
+        #[arg(long)]
+        json: bool,
+        #[command(flatten)]
+        rewrite: RewriteArgs,
+    },
     /// Simulate the deposition: how much of each layer rests on material already there.
     Check {
         file: PathBuf,
@@ -102,6 +115,12 @@ enum Command {
     },
 }
 
+#[derive(Subcommand)]
+enum ProfilesAction {
+    /// Print a built-in profile as commented YAML.
+    Show { name: String },
+}
+
 /// Region detection settings shared by the commands that detect regions.
 #[derive(clap::Args, Default)]
 struct DetectArgs {
@@ -123,6 +142,16 @@ struct DetectArgs {
 /// Rewrite settings shared by slicer mode and `poa process`.
 #[derive(clap::Args, Default)]
 struct RewriteArgs {
+    /// Settings profile: a built-in name (`poa profiles` lists them) or a YAML file
+    /// [default: the built-in profile matching the slicer's filament type, if any].
+    #[arg(long, value_name = "NAME|PATH")]
+    profile: Option<String>,
+    /// Set any setting: `--set fan=80` (repeatable; `poa profiles show pla` lists the keys).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    set: Vec<String>,
+    /// Nozzle temperature change while printing loops, degrees C.
+    #[arg(long, value_name = "C", allow_hyphen_values = true)]
+    temperature_offset: Option<f64>,
     /// Rewrite bridges too (`poa`), or leave them as sliced (`keep`, the default).
     #[arg(long, value_name = "MODE", value_parser = ["keep", "poa"])]
     bridges: Option<String>,
@@ -158,62 +187,58 @@ struct RewriteArgs {
 }
 
 impl RewriteArgs {
-    fn options(&self, config: &SlicerConfig) -> anyhow::Result<ProcessOptions> {
-        let mut s = PoaSettings::default();
-        let range = |name: &str, v: Option<f64>, lo: f64, hi: f64| -> anyhow::Result<Option<f64>> {
-            match v {
-                Some(x) if !(x.is_finite() && x >= lo && x <= hi) => {
-                    anyhow::bail!("--{name} must be between {lo} and {hi} (got {x})")
-                }
-                other => Ok(other),
+    /// The flags as `(key, value)` pairs, in precedence order (named flags, then `--set`).
+    fn flags(&self) -> anyhow::Result<Vec<(String, String)>> {
+        let mut f = self.detect.flags();
+        let mut num = |key: &str, v: Option<f64>| {
+            if let Some(x) = v {
+                f.push((key.to_string(), x.to_string()));
             }
         };
+        num("overlap", self.overlap);
+        num("loop_speed", self.loop_speed);
+        num("perimeter_speed", self.perimeter_speed);
+        num("fan", self.fan);
+        num("dwell", self.dwell);
+        num("flow_factor", self.flow);
+        num("perimeter_inset", self.perimeter_inset);
+        num("temperature_offset", self.temperature_offset);
         if let Some(b) = &self.bridges {
-            s.bridges = if b == "poa" {
-                BridgeMode::Poa
-            } else {
-                BridgeMode::Keep
+            f.push(("bridges".into(), b.clone()));
+        }
+        for kv in &self.set {
+            let Some((k, v)) = kv.split_once('=') else {
+                anyhow::bail!("--set takes KEY=VALUE (got {kv:?})");
             };
+            f.push((k.trim().to_string(), v.trim().to_string()));
         }
-        if let Some(v) = range("overlap", self.overlap, 0.05, 0.9)? {
-            s.overlap = v;
-        }
-        s.loop_speed = range("loop-speed", self.loop_speed, 0.5, 500.0)?;
-        s.perimeter_speed = range("perimeter-speed", self.perimeter_speed, 0.5, 500.0)?;
-        if let Some(v) = range("fan", self.fan, 0.0, 100.0)? {
-            s.fan = v / 100.0;
-        }
-        if let Some(v) = range("dwell", self.dwell, 0.0, 60.0)? {
-            s.dwell = v;
-        }
-        if let Some(v) = range("flow", self.flow, 0.5, 2.0)? {
-            s.flow_factor = v;
-        }
-        if let Some(v) = range("perimeter-inset", self.perimeter_inset, 0.0, 2.0)? {
-            s.perimeter_inset = v;
-        }
+        Ok(f)
+    }
+
+    fn effective(&self, config: &SlicerConfig) -> anyhow::Result<settings::Effective> {
+        Ok(settings::resolve(
+            self.profile.as_deref(),
+            config,
+            &self.flags()?,
+        )?)
+    }
+
+    fn options(&self, config: &SlicerConfig) -> anyhow::Result<ProcessOptions> {
         let objects = ObjectFilter::from_globs(&self.objects, &self.skip_objects)
             .map_err(|e| anyhow::anyhow!(e))?;
-        let detect = self.detect.options(config)?;
-        let motion_speed = s
-            .loop_speed
-            .or_else(|| config.number("bridge_speed"))
-            .unwrap_or(25.0);
-        let header = format!(
-            "{} {}: overlap {}, loop speed {} mm/s, fan {}%, dwell {} s, flow {}, perimeter inset {} mm, bridges {}",
-            emit::HEADER_MARK,
-            env!("CARGO_PKG_VERSION"),
-            s.overlap,
-            motion_speed,
-            (s.fan * 100.0).round(),
-            s.dwell,
-            s.flow_factor,
-            s.perimeter_inset,
-            if s.bridges == BridgeMode::Poa { "poa" } else { "keep" }
-        );
+        let eff = self.effective(config)?;
+        let mut header = format!("{} {}:", emit::HEADER_MARK, env!("CARGO_PKG_VERSION"));
+        if let Some(p) = &eff.profile {
+            header.push_str(&format!(" profile {p};"));
+        }
+        let poa = eff.poa_settings();
+        let motion = emit::Motion::from_config(config, &poa);
+        header.push_str(&format!(" loops at {} mm/s;", motion.loop_speed));
+        header.push(' ');
+        header.push_str(&eff.summary());
         Ok(ProcessOptions {
-            detect,
-            settings: s,
+            detect: eff.detect_options(config),
+            settings: eff.poa_settings(),
             objects,
             header,
         })
@@ -221,34 +246,23 @@ impl RewriteArgs {
 }
 
 impl DetectArgs {
+    fn flags(&self) -> Vec<(String, String)> {
+        let mut f = Vec::new();
+        for (key, v) in [
+            ("tolerance", self.tolerance),
+            ("overhang_angle", self.overhang_angle),
+            ("min_width", self.min_width),
+            ("min_area", self.min_area),
+        ] {
+            if let Some(x) = v {
+                f.push((key.to_string(), x.to_string()));
+            }
+        }
+        f
+    }
+
     fn options(&self, config: &SlicerConfig) -> anyhow::Result<DetectOptions> {
-        let mut o = report::detect_options(config);
-        if let Some(t) = self.tolerance {
-            anyhow::ensure!(
-                t.is_finite() && (0.0..=10.0).contains(&t),
-                "--tolerance must be between 0 and 10 mm"
-            );
-            o.tolerance = Tolerance::Distance(t);
-        }
-        if let Some(a) = self.overhang_angle {
-            anyhow::ensure!(
-                a.is_finite() && (0.0..90.0).contains(&a),
-                "--overhang-angle must be between 0 and 90 degrees"
-            );
-            o.tolerance = Tolerance::Angle(a);
-        }
-        if let Some(w) = self.min_width {
-            anyhow::ensure!(
-                w.is_finite() && (0.0..=50.0).contains(&w),
-                "--min-width must be between 0 and 50 mm"
-            );
-            o.min_width = Some(w);
-        }
-        if let Some(a) = self.min_area {
-            anyhow::ensure!(a.is_finite() && a >= 0.0, "--min-area must be 0 or more");
-            o.min_area = a;
-        }
-        Ok(o)
+        Ok(settings::resolve(None, config, &self.flags())?.detect_options(config))
     }
 }
 
@@ -268,6 +282,22 @@ fn main() -> ExitCode {
             ExitCode::from(1)
         }
     }
+}
+
+fn write_stdout(text: &str) -> anyhow::Result<()> {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    out.write_all(text.as_bytes())?;
+    out.flush()?;
+    Ok(())
+}
+
+fn emit_json<T: serde::Serialize>(value: &T) -> anyhow::Result<()> {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    serde_json::to_writer_pretty(&mut out, value).map_err(std::io::Error::from)?;
+    writeln!(out)?;
+    Ok(())
 }
 
 /// Writes a report to stdout, as text or JSON.
@@ -315,6 +345,66 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             let rep = report::analyze(opened.reader, opened.config, &opts, &name)
                 .map_err(|source| printonair::Error::Read { path: file, source })?;
             emit(&rep, json)?;
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Profiles { action } => {
+            let text = match action {
+                None => {
+                    let mut t =
+                        String::from("built-in profiles (poa profiles show NAME prints one):\n");
+                    for (name, aliases, _) in settings::BUILTIN {
+                        t.push_str(&format!("  {name:<6} for {}\n", aliases.join(", ")));
+                    }
+                    t.push_str("without --profile, poa picks the one matching the slicer's filament type\n");
+                    t
+                }
+                Some(ProfilesAction::Show { name }) => {
+                    let Some((_, text)) = settings::builtin(&name) else {
+                        anyhow::bail!("no built-in profile `{name}`; `poa profiles` lists them");
+                    };
+                    text.to_string()
+                }
+            };
+            write_stdout(&text)?;
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Config {
+            file,
+            json,
+            rewrite,
+        } => {
+            let opened = input::open(&file)?;
+            let eff = rewrite.effective(&opened.config)?;
+            if json {
+                emit_json(&eff)?;
+            } else {
+                let mut t = eff.to_string();
+                let c = &opened.config;
+                t.push_str("from the slicer (config block, overridden by SLIC3R_* variables):\n");
+                for key in [
+                    "filament_type",
+                    "filament_diameter",
+                    "nozzle_diameter",
+                    "layer_height",
+                    "external_perimeter_extrusion_width",
+                    "bridge_speed",
+                    "retract_length",
+                    "retract_lift",
+                    "travel_speed",
+                    "use_relative_e_distances",
+                ] {
+                    let v = c.get(key).unwrap_or("(not set)");
+                    let src = if c.is_from_env(key) {
+                        "SLIC3R_ variable"
+                    } else if c.get(key).is_some() {
+                        "file"
+                    } else {
+                        ""
+                    };
+                    t.push_str(&format!("  {key:<36} {v:<12} {src}\n"));
+                }
+                write_stdout(&t)?;
+            }
             Ok(ExitCode::SUCCESS)
         }
         Command::Check {

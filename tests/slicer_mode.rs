@@ -67,7 +67,7 @@ fn options_come_before_the_path() {
     let data = std::fs::read(&f).unwrap();
     assert_eq!(count(&data, ";POA_BEGIN"), 1);
     assert!(count(&data, "M106 S204") >= 1, "fan at 80 %");
-    assert!(String::from_utf8_lossy(&data).contains("fan 80%"));
+    assert!(String::from_utf8_lossy(&data).contains("fan=80"));
 }
 
 #[test]
@@ -83,10 +83,10 @@ fn settings_from_the_slicer_environment() {
     assert!(o.status.success(), "{}", stderr(&o));
     let data = std::fs::read_to_string(&f).unwrap();
     assert!(
-        data.contains("loop speed 12 mm/s"),
+        data.contains("loops at 12 mm/s"),
         "header records the loop speed"
     );
-    assert!(data.contains("G1 F720\n"), "loops at 12 mm/s");
+    assert!(data.contains("G1 F720\n"), "loops at the slicer's 12 mm/s");
 }
 
 #[test]
@@ -118,7 +118,11 @@ fn refused_files_are_left_untouched() {
     let before = std::fs::read(&f).unwrap();
     let o = run(&["--overlap", "5", f.to_str().unwrap()]);
     assert!(!o.status.success());
-    assert!(stderr(&o).contains("--overlap"), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("`overlap` must be a number from 0.05 to 0.9"),
+        "{}",
+        stderr(&o)
+    );
     assert_eq!(std::fs::read(&f).unwrap(), before);
 }
 

@@ -50,6 +50,8 @@ pub struct PoaSettings {
     pub flow_factor: f64,
     /// How far the region's external perimeter is pulled inward.
     pub perimeter_inset: f64,
+    /// Nozzle temperature change while printing the loops (degrees C), restored afterwards.
+    pub temperature_offset: f64,
     pub bridges: BridgeMode,
 }
 
@@ -63,6 +65,7 @@ impl Default for PoaSettings {
             dwell: 0.0,
             flow_factor: 1.0,
             perimeter_inset: 0.05,
+            temperature_offset: 0.0,
             bridges: BridgeMode::Keep,
         }
     }
