@@ -830,6 +830,8 @@ pub fn already_processed(head: &[u8]) -> bool {
 /// What `process` did to a file.
 #[derive(Debug, Clone, Default, Serialize)]
 pub struct ProcessReport {
+    /// The slicer that wrote the file, as detected.
+    pub slicer: String,
     pub regions_found: usize,
     pub regions_rewritten: usize,
     /// Regions left as the slicer made them, with the reason.
@@ -1013,5 +1015,6 @@ pub fn process<R: BufRead, W: Write>(
         }
         Ok(())
     })?;
+    report.slicer = reader.facts().slicer.name().to_string();
     Ok(report)
 }

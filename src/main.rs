@@ -182,6 +182,9 @@ struct RewriteArgs {
     /// Leave these objects as sliced.
     #[arg(long, value_name = "NAMES", value_delimiter = ',')]
     skip_objects: Vec<String>,
+    /// Print what happened to each region.
+    #[arg(short, long)]
+    verbose: bool,
     #[command(flatten)]
     detect: DetectArgs,
 }
@@ -499,19 +502,21 @@ fn rewrite_file(
     file: &std::path::Path,
     dest: Option<&std::path::Path>,
     args: &RewriteArgs,
+    progress: bool,
 ) -> anyhow::Result<Option<ProcessReport>> {
     let opened = input::open(file)?;
     if emit::already_processed(&opened.head) {
         return Ok(None);
     }
     let opts = args.options(&opened.config)?;
+    let reader = Progress::new(opened.reader, opened.size, progress);
     let read_err = |source| printonair::Error::Read {
         path: file.to_path_buf(),
         source,
     };
     let report = match dest {
         Some(dest) => output::write_atomic(dest, |w| {
-            emit::process(opened.reader, opened.config, &opts, w).map_err(|e| {
+            emit::process(reader, opened.config, &opts, w).map_err(|e| {
                 // Reading and writing share the stream; say which side failed.
                 if e.kind() == std::io::ErrorKind::Other {
                     read_err(e)
@@ -523,16 +528,98 @@ fn rewrite_file(
                 }
             })
         })?,
-        None => emit::process(opened.reader, opened.config, &opts, &mut std::io::sink())
-            .map_err(read_err)?,
+        None => {
+            emit::process(reader, opened.config, &opts, &mut std::io::sink()).map_err(read_err)?
+        }
     };
+    if args.verbose {
+        let mut t = String::new();
+        for s in &report.rewrites {
+            t.push_str(&format!(
+                "poa: region {} on layer {} (Z {:.2}): {} loops, {} strands, {:.0} mm written, {:.0} mm taken out, filament {:+.1} mm, time {:+.0} s\n",
+                s.region,
+                s.layer,
+                s.z,
+                s.loops,
+                s.strands,
+                s.written_length_mm,
+                s.removed_length_mm,
+                s.written_filament_mm - s.removed_filament_mm,
+                s.time_added_s
+            ));
+        }
+        for s in &report.skipped {
+            t.push_str(&format!(
+                "poa: region {} on layer {} ({}) left as sliced: {}\n",
+                s.region,
+                s.layer,
+                s.kind.name(),
+                s.reason
+            ));
+        }
+        write_stdout(&t)?;
+    }
     Ok(Some(report))
+}
+
+/// Counts what the pipeline reads and shows it as a progress bar on stderr, only when stderr
+/// is a terminal (a slicer running poa sees nothing) and the file is big enough to wait for.
+struct Progress<R> {
+    inner: R,
+    bar: Option<indicatif::ProgressBar>,
+}
+
+impl<R> Progress<R> {
+    fn new(inner: R, size: u64, wanted: bool) -> Self {
+        use std::io::IsTerminal;
+        let show = wanted && size > 16 * 1024 * 1024 && std::io::stderr().is_terminal();
+        let bar = show.then(|| {
+            let bar = indicatif::ProgressBar::new(size);
+            bar.set_style(
+                indicatif::ProgressStyle::with_template("poa {bar:40} {bytes}/{total_bytes} {eta}")
+                    .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+            );
+            bar
+        });
+        Progress { inner, bar }
+    }
+}
+
+impl<R: std::io::Read> std::io::Read for Progress<R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let n = self.inner.read(buf)?;
+        if let Some(b) = &self.bar {
+            b.inc(n as u64);
+        }
+        Ok(n)
+    }
+}
+
+impl<R: std::io::BufRead> std::io::BufRead for Progress<R> {
+    fn fill_buf(&mut self) -> std::io::Result<&[u8]> {
+        self.inner.fill_buf()
+    }
+
+    fn consume(&mut self, amt: usize) {
+        if let Some(b) = &self.bar {
+            b.inc(amt as u64);
+        }
+        self.inner.consume(amt);
+    }
+}
+
+impl<R> Drop for Progress<R> {
+    fn drop(&mut self) {
+        if let Some(b) = &self.bar {
+            b.finish_and_clear();
+        }
+    }
 }
 
 /// `poa [OPTIONS] FILE`: what a slicer runs. Quiet on success (the slicer shows stdout only in
 /// its log); one or two lines on stderr on failure, with the file untouched.
 fn slicer_mode(file: &std::path::Path, args: &RewriteArgs) -> anyhow::Result<ExitCode> {
-    rewrite_file(file, Some(file), args)?;
+    rewrite_file(file, Some(file), args, true)?;
     Ok(ExitCode::SUCCESS)
 }
 
@@ -550,10 +637,16 @@ fn process_command(
     if output.is_none() && out_dir.is_none() && !dry_run {
         anyhow::bail!("say where to write: -o OUT, --out-dir DIR, or --dry-run");
     }
-    let mut reports = Vec::new();
-    let mut failed = 0;
-    for file in files {
-        let dest = if dry_run {
+    if let Some(dir) = out_dir.as_ref() {
+        if !dry_run {
+            std::fs::create_dir_all(dir).map_err(|source| printonair::Error::Write {
+                path: dir.clone(),
+                source,
+            })?;
+        }
+    }
+    let dest_of = |file: &PathBuf| -> Option<PathBuf> {
+        if dry_run {
             None
         } else if let Some(o) = &output {
             Some(o.clone())
@@ -561,25 +654,65 @@ fn process_command(
             out_dir
                 .as_ref()
                 .map(|d| d.join(file.file_name().unwrap_or_default()))
-        };
-        if let Some(d) = &dest {
-            if same_file(file, d) {
-                anyhow::bail!(
-                    "{} is the input itself; use slicer mode (poa FILE) to rewrite in place",
-                    d.display()
-                );
-            }
-            if let Some(dir) = out_dir.as_ref() {
-                std::fs::create_dir_all(dir).map_err(|source| printonair::Error::Write {
-                    path: dir.clone(),
-                    source,
-                })?;
-            }
         }
-        match rewrite_file(file, dest.as_deref(), args) {
+    };
+    // Every file is tried, on all cores; one bad file does not stop the others.
+    let outcomes: Vec<(PathBuf, Result<Option<ProcessReport>, String>)> = {
+        use rayon::prelude::*;
+        files
+            .par_iter()
+            .map(|file| {
+                let dest = dest_of(file);
+                let result = (|| -> anyhow::Result<Option<ProcessReport>> {
+                    if let Some(d) = &dest {
+                        anyhow::ensure!(
+                            !same_file(file, d),
+                            "{} is the input itself; use slicer mode (poa FILE) to rewrite in place",
+                            d.display()
+                        );
+                    }
+                    let r = rewrite_file(file, dest.as_deref(), args, files.len() == 1)?;
+                    if r.is_none() {
+                        if let Some(d) = &dest {
+                            std::fs::copy(file, d).map_err(|source| printonair::Error::Write {
+                                path: d.clone(),
+                                source,
+                            })?;
+                        }
+                    }
+                    Ok(r)
+                })();
+                (file.clone(), result.map_err(|e| format!("{e:#}")))
+            })
+            .collect()
+    };
+    let mut reports = Vec::new();
+    let mut failed = 0;
+    let mut text = String::new();
+    if files.len() > 1 {
+        text.push_str(&format!(
+            "{:<40} {:<12} {:>7} {:>9} {:>6} {:>8} {:>11}  status\n",
+            "file", "slicer", "regions", "rewritten", "loops", "time s", "filament mm"
+        ));
+    }
+    for (file, result) in &outcomes {
+        match result {
+            Ok(Some(r)) if files.len() > 1 => {
+                text.push_str(&format!(
+                    "{:<40} {:<12} {:>7} {:>9} {:>6} {:>+8.0} {:>+11.1}  {}\n",
+                    file.display(),
+                    r.slicer,
+                    r.regions_found,
+                    r.regions_rewritten,
+                    r.loops,
+                    r.time_added_s,
+                    r.filament_added_mm,
+                    if dry_run { "dry run" } else { "ok" }
+                ));
+            }
             Ok(Some(r)) => {
-                println!(
-                    "{}: {} region{} found, {} rewritten with {} loops; filament {:+.1} mm, time {:+.0} s{}",
+                text.push_str(&format!(
+                    "{}: {} region{} found, {} rewritten with {} loops; filament {:+.1} mm, time {:+.0} s{}\n",
                     file.display(),
                     r.regions_found,
                     if r.regions_found == 1 { "" } else { "s" },
@@ -588,45 +721,39 @@ fn process_command(
                     r.filament_added_mm,
                     r.time_added_s,
                     if dry_run { " (dry run: nothing written)" } else { "" }
-                );
+                ));
                 for s in &r.skipped {
-                    println!(
-                        "  region {} (layer {}, {}): left as sliced: {}",
+                    text.push_str(&format!(
+                        "  region {} (layer {}, {}): left as sliced: {}\n",
                         s.region,
                         s.layer,
                         s.kind.name(),
                         s.reason
-                    );
+                    ));
                 }
-                if !dry_run && r.regions_rewritten == 0 {
-                    if let Some(d) = &dest {
-                        println!(
-                            "  {} is a copy of the input with poa's header line",
-                            d.display()
-                        );
-                    }
-                }
-                reports.push(serde_json::json!({"file": file, "report": r}));
             }
             Ok(None) => {
-                println!(
-                    "{}: already processed by poa; left unchanged",
+                text.push_str(&format!(
+                    "{}: already processed by poa; left unchanged\n",
                     file.display()
-                );
-                if let Some(d) = &dest {
-                    std::fs::copy(file, d).map_err(|source| printonair::Error::Write {
-                        path: d.clone(),
-                        source,
-                    })?;
-                }
+                ));
             }
             Err(e) => {
                 failed += 1;
-                eprintln!("poa: {e:#}");
-                reports.push(serde_json::json!({"file": file, "error": format!("{e:#}")}));
+                if files.len() > 1 {
+                    text.push_str(&format!("{:<40} {e}\n", file.display()));
+                } else {
+                    eprintln!("poa: {e}");
+                }
             }
         }
+        match result {
+            Ok(Some(r)) => reports.push(serde_json::json!({"file": file, "report": r})),
+            Ok(None) => reports.push(serde_json::json!({"file": file, "already_processed": true})),
+            Err(e) => reports.push(serde_json::json!({"file": file, "error": e})),
+        }
     }
+    write_stdout(&text)?;
     if let Some(p) = report_path {
         let text = serde_json::to_string_pretty(&serde_json::json!({ "files": reports }))?;
         write_file(&p, &text)?;

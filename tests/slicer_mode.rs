@@ -235,3 +235,37 @@ fn end_to_end_through_prusaslicer() {
     let (layers, _) = read_layers(&data, false);
     assert_eq!(layer_count(&layers), 75);
 }
+
+#[test]
+fn a_folder_of_files_with_one_bad_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let a = copy_sample(dir.path(), "rect_overhang_prusa_rel.gcode");
+    let b = copy_sample(dir.path(), "rect_overhang_cura.gcode");
+    let bad = dir.path().join("broken.gcode");
+    std::fs::write(&bad, [0u8, 1, 2, 3, 255, 0, 0, 7].repeat(100)).unwrap();
+    let out = dir.path().join("out");
+    let o = run(&[
+        "process",
+        a.to_str().unwrap(),
+        bad.to_str().unwrap(),
+        b.to_str().unwrap(),
+        "--out-dir",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1), "one file failed");
+    let table = String::from_utf8_lossy(&o.stdout);
+    assert!(table.lines().next().unwrap().starts_with("file"), "{table}");
+    assert!(
+        table.contains("PrusaSlicer") && table.contains("Cura"),
+        "{table}"
+    );
+    assert!(table.contains("binary data"), "{table}");
+    for name in ["rect_overhang_prusa_rel.gcode", "rect_overhang_cura.gcode"] {
+        assert_eq!(
+            count(&std::fs::read(out.join(name)).unwrap(), ";POA_BEGIN"),
+            1,
+            "{name}"
+        );
+    }
+    assert!(!out.join("broken.gcode").exists());
+}
