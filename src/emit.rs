@@ -904,6 +904,8 @@ pub fn process<R: BufRead, W: Write>(
 ) -> io::Result<ProcessReport> {
     let motion = Motion::from_config(&config, &opts.settings);
     let loop_width = config.external_perimeter_width();
+    let filament_area = motion.filament_area;
+    let density = config.filament_density();
     let mut reader = crate::layers::LayerReader::new(
         input,
         crate::layers::ReaderOptions {
@@ -913,6 +915,7 @@ pub fn process<R: BufRead, W: Write>(
     );
     let mut report = ProcessReport::default();
     let mut header_written = false;
+    let mut held: Option<Vec<u8>> = None;
     let mut next_id = 0usize;
     let mut names: Vec<String> = Vec::new();
     crate::geometry::detect(reader.by_ref(), &opts.detect, |d| {
@@ -996,25 +999,175 @@ pub fn process<R: BufRead, W: Write>(
             }
             std::borrow::Cow::Owned(bytes)
         };
-        if !header_written && !bytes.is_empty() {
+        let block = if !header_written && !bytes.is_empty() {
             header_written = true;
             // After the first line: some tools read the slicer's name from line 1.
             let first = memchr::memchr(b'\n', &bytes)
                 .map(|i| i + 1)
                 .unwrap_or(bytes.len());
-            output.write_all(&bytes[..first])?;
-            if first == bytes.len() && !bytes.ends_with(b"\n") {
-                output.write_all(line_end(&bytes).as_bytes())?;
-            }
             let nl = line_end(&bytes);
-            output.write_all(opts.header.as_bytes())?;
-            output.write_all(nl.as_bytes())?;
-            output.write_all(&bytes[first..])?;
+            let mut b = Vec::with_capacity(bytes.len() + opts.header.len() + 2);
+            b.extend_from_slice(&bytes[..first]);
+            if first == bytes.len() && !bytes.ends_with(b"\n") {
+                b.extend_from_slice(nl.as_bytes());
+            }
+            b.extend_from_slice(opts.header.as_bytes());
+            b.extend_from_slice(nl.as_bytes());
+            b.extend_from_slice(&bytes[first..]);
+            b
         } else {
-            output.write_all(&bytes)?;
+            bytes.into_owned()
+        };
+        // One block is held back: the slicer's statistics footer is in the last one.
+        if let Some(prev) = held.replace(block) {
+            output.write_all(&prev)?;
         }
         Ok(())
     })?;
+    if let Some(last) = held {
+        if report.regions_rewritten > 0 {
+            output.write_all(&update_footer(
+                &last,
+                report.filament_added_mm,
+                report.time_added_s,
+                filament_area,
+                density,
+            ))?;
+        } else {
+            output.write_all(&last)?;
+        }
+    }
     report.slicer = reader.facts().slicer.name().to_string();
     Ok(report)
+}
+
+/// Rewrites the slicer's statistics comments (PrusaSlicer family: `; filament used [mm] = `,
+/// `[cm3]`, `[g]`, cost, `; estimated printing time (...) = 1h 2m 3s`) for what the rewrite
+/// added. Lines it does not recognise, or with per-extruder lists, are left as they are.
+pub fn update_footer(
+    block: &[u8],
+    filament_mm: f64,
+    time_s: f64,
+    filament_area: f64,
+    density: f64,
+) -> Vec<u8> {
+    let cm3 = filament_mm * filament_area / 1000.0;
+    let grams = cm3 * density;
+    let mut out = Vec::with_capacity(block.len() + 64);
+    let mut old_g = None;
+    for raw in split_lines(block) {
+        let content = strip_terminator(raw);
+        let ending = &raw[content.len()..];
+        let text = String::from_utf8_lossy(content);
+        let replaced = footer_line(&text, filament_mm, cm3, grams, time_s, &mut old_g);
+        match replaced {
+            Some(new) => {
+                out.extend_from_slice(new.as_bytes());
+                out.extend_from_slice(ending);
+            }
+            None => out.extend_from_slice(raw),
+        }
+    }
+    out
+}
+
+fn footer_line(
+    text: &str,
+    mm: f64,
+    cm3: f64,
+    grams: f64,
+    secs: f64,
+    old_g: &mut Option<f64>,
+) -> Option<String> {
+    let (key, value) = text.split_once(" = ")?;
+    let number = || value.trim().parse::<f64>().ok();
+    let new = match key {
+        "; filament used [mm]" => format!("{:.2}", number()? + mm),
+        "; filament used [cm3]" => format!("{:.2}", number()? + cm3),
+        "; filament used [g]" | "; total filament used [g]" => {
+            let g = number()?;
+            old_g.get_or_insert(g);
+            format!("{:.2}", g + grams)
+        }
+        "; filament cost" | "; total filament cost" => {
+            // Cost scales with mass.
+            let (c, g) = (number()?, (*old_g)?);
+            if g <= 0.0 {
+                return None;
+            }
+            format!("{:.2}", c * (g + grams) / g)
+        }
+        k if k.starts_with("; estimated printing time") => {
+            format_duration(parse_duration(value.trim())? + secs)
+        }
+        _ => return None,
+    };
+    Some(format!("{key} = {new}"))
+}
+
+/// Parses PrusaSlicer's `1d 2h 3m 4s` durations (any of the parts may be missing).
+fn parse_duration(s: &str) -> Option<f64> {
+    let mut total = 0.0;
+    let mut any = false;
+    for part in s.split_whitespace() {
+        let (n, unit) = part.split_at(part.len().checked_sub(1)?);
+        let n: f64 = n.parse().ok()?;
+        total += n * match unit {
+            "d" => 86400.0,
+            "h" => 3600.0,
+            "m" => 60.0,
+            "s" => 1.0,
+            _ => return None,
+        };
+        any = true;
+    }
+    any.then_some(total)
+}
+
+fn format_duration(secs: f64) -> String {
+    let s = secs.max(0.0).round() as u64;
+    let (d, h, m, sec) = (s / 86400, s / 3600 % 24, s / 60 % 60, s % 60);
+    let mut parts = Vec::new();
+    if d > 0 {
+        parts.push(format!("{d}d"));
+    }
+    if d > 0 || h > 0 {
+        parts.push(format!("{h}h"));
+    }
+    if d > 0 || h > 0 || m > 0 {
+        parts.push(format!("{m}m"));
+    }
+    parts.push(format!("{sec}s"));
+    parts.join(" ")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn footer_statistics_follow_the_rewrite() {
+        let block = b"G1 E-.8\n; filament used [mm] = 2060.39\n; filament used [cm3] = 4.96\n\
+; filament used [g] = 6.15\n; filament cost = 0.16\n; estimated printing time (normal mode) = 35m 49s\n\
+; estimated printing time (silent mode) = 1h 0m 59s\n; filament used [mm] = 1.0, 2.0\n";
+        let area = crate::layers::filament_area(1.75);
+        let out = update_footer(block, 33.0, 36.4, area, 1.24);
+        let text = String::from_utf8(out).unwrap();
+        assert!(text.contains("; filament used [mm] = 2093.39\n"), "{text}");
+        assert!(text.contains("; filament used [cm3] = 5.04\n"), "{text}");
+        assert!(text.contains("; filament used [g] = 6.25\n"), "{text}");
+        assert!(text.contains("; filament cost = 0.16\n"), "{text}");
+        assert!(text.contains("(normal mode) = 36m 25s\n"), "{text}");
+        assert!(text.contains("(silent mode) = 1h 1m 35s\n"), "{text}");
+        assert!(text.contains("= 1.0, 2.0\n"), "lists are left alone");
+        assert!(text.starts_with("G1 E-.8\n"));
+    }
+
+    #[test]
+    fn durations() {
+        assert_eq!(parse_duration("1d 2h 3m 4s"), Some(93784.0));
+        assert_eq!(format_duration(93784.0), "1d 2h 3m 4s");
+        assert_eq!(format_duration(59.0), "59s");
+        assert_eq!(parse_duration("banana"), None);
+    }
 }
