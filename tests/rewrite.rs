@@ -303,3 +303,52 @@ fn running_twice_changes_nothing() {
     assert!(emit::already_processed(&out[..out.len().min(65536)]));
     assert!(!emit::already_processed(&original[..65536]));
 }
+
+/// Other dialects: poa's strands rest on material and the file's E count stays right.
+#[test]
+fn cura_slic3r_and_comment_less_files() {
+    for name in [
+        "rect_overhang_cura.gcode",
+        "rect_overhang_slic3r.gcode",
+        "rect_overhang_nocomments.gcode",
+    ] {
+        let original = read(&sample(name));
+        let (out, rep) = process(&original, BridgeMode::Keep);
+        assert_eq!(rep.regions_rewritten, 1, "{name}");
+        let blocks = poa_blocks(&out);
+        let after = layers_of(&out);
+        let fa =
+            printonair::layers::filament_area(SlicerConfig::parse(&original).filament_diameter());
+        let i = after
+            .iter()
+            .position(|l| l.first_line <= blocks[0].0 && blocks[0].1 <= l.last_line)
+            .unwrap();
+        let c = check_layer(
+            Some(&after[i - 1]),
+            &after[i],
+            fa,
+            &CheckOptions::default(),
+            true,
+        );
+        let bad = c
+            .samples
+            .iter()
+            .filter(|s| s.line >= blocks[0].0 && s.line <= blocks[0].1)
+            .filter(|s| s.support != Support::Supported)
+            .count();
+        assert_eq!(bad, 0, "{name}: poa strands unsupported");
+        let total = |d: &[u8]| -> f64 {
+            layers_of(d)
+                .iter()
+                .flat_map(|l| &l.paths)
+                .map(|p| p.e())
+                .sum()
+        };
+        let s = &rep.rewrites[0];
+        let expected = total(&original) - s.removed_filament_mm + s.written_filament_mm;
+        assert!(
+            (total(&out) - expected).abs() < 1e-3,
+            "{name}: E bookkeeping"
+        );
+    }
+}
