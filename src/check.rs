@@ -161,6 +161,8 @@ pub struct LayerCheck {
     pub longest_in_air_at: Option<([f64; 2], u64)>,
     /// Extruded volume / footprint area / height.
     pub density: f64,
+    /// Filament pushed on this layer's extrusions (mm).
+    pub filament_mm: f64,
     #[serde(skip)]
     pub samples: Vec<Sample>,
 }
@@ -215,6 +217,7 @@ pub fn check_layer(
             let len = ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2)).sqrt();
             let w = seg_width(path, i, filament_area);
             volume += path.seg_e[i] * filament_area;
+            result.filament_mm += path.seg_e[i];
             if len <= 1e-9 {
                 continue;
             }

@@ -96,6 +96,9 @@ enum Command {
         /// Exit with status 2 when more than this many mm are printed in air.
         #[arg(long, value_name = "MM")]
         fail_in_air: Option<f64>,
+        /// Compare with this original: both side by side, and the layers that changed.
+        #[arg(long, value_name = "ORIGINAL")]
+        compare: Option<PathBuf>,
     },
     /// Draw layers as SVG: the layer below, the strands by role, the regions over air.
     #[command(group(clap::ArgGroup::new("what").required(true).args(["layer", "regions"])))]
@@ -416,6 +419,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             overlap_min,
             max_bridge,
             fail_in_air,
+            compare,
         } => {
             anyhow::ensure!(
                 (0.0..0.5).contains(&overlap_min),
@@ -431,8 +435,17 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             let name = file.display().to_string();
             let rep = report::check(opened.reader, opened.config, &opts, &name)
                 .map_err(|source| printonair::Error::Read { path: file, source })?;
-            emit(&rep, json)?;
-            if fail_in_air.is_some_and(|limit| rep.in_air_mm > limit) {
+            let in_air = rep.in_air_mm;
+            if let Some(orig) = compare {
+                let o = input::open(&orig)?;
+                let orig_name = orig.display().to_string();
+                let before = report::check(o.reader, o.config, &opts, &orig_name)
+                    .map_err(|source| printonair::Error::Read { path: orig, source })?;
+                emit(&report::compare(before, rep), json)?;
+            } else {
+                emit(&rep, json)?;
+            }
+            if fail_in_air.is_some_and(|limit| in_air > limit) {
                 return Ok(ExitCode::from(2));
             }
             Ok(ExitCode::SUCCESS)

@@ -478,6 +478,7 @@ pub struct CheckReport {
     pub longest_in_air_mm: f64,
     /// Layer number, [x, y] and line of the longest in-air run.
     pub longest_in_air_at: Option<(usize, [f64; 2], u64)>,
+    pub filament_mm: f64,
     pub layers: Vec<LayerCheck>,
 }
 
@@ -505,6 +506,7 @@ pub fn check<R: BufRead>(
         in_air_mm: 0.0,
         longest_in_air_mm: 0.0,
         longest_in_air_at: None,
+        filament_mm: 0.0,
         layers: Vec::new(),
     };
     let mut below: Option<crate::layers::Layer> = None;
@@ -518,6 +520,7 @@ pub fn check<R: BufRead>(
         rep.supported_mm += c.supported_mm;
         rep.bridged_mm += c.bridged_mm;
         rep.in_air_mm += c.in_air_mm;
+        rep.filament_mm += c.filament_mm;
         if c.longest_in_air_mm > rep.longest_in_air_mm {
             rep.longest_in_air_mm = c.longest_in_air_mm;
             rep.longest_in_air_at = c.longest_in_air_at.map(|(p, l)| (c.layer, p, l));
@@ -580,6 +583,115 @@ impl fmt::Display for CheckReport {
             f,
             "  (layers fully supported with density 0.8-1.3 not listed)"
         )?;
+        Ok(())
+    }
+}
+
+/// `poa check --compare`: two files side by side, and the layers that differ.
+#[derive(Debug, Clone, Serialize)]
+pub struct CompareReport {
+    pub original: CheckReport,
+    pub file: CheckReport,
+    /// Filament the second file uses beyond the first (mm).
+    pub filament_added_mm: f64,
+    /// Layers whose extrusion differs: (layer, Z, before, after).
+    pub changed: Vec<(usize, f64, LayerSummary, LayerSummary)>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct LayerSummary {
+    pub length_mm: f64,
+    pub supported_mm: f64,
+    pub bridged_mm: f64,
+    pub in_air_mm: f64,
+    pub density: f64,
+    pub filament_mm: f64,
+}
+
+impl From<&LayerCheck> for LayerSummary {
+    fn from(l: &LayerCheck) -> Self {
+        LayerSummary {
+            length_mm: l.length_mm,
+            supported_mm: l.supported_mm,
+            bridged_mm: l.bridged_mm,
+            in_air_mm: l.in_air_mm,
+            density: l.density,
+            filament_mm: l.filament_mm,
+        }
+    }
+}
+
+/// Pairs the layers of two check reports (by position) and keeps those that changed.
+pub fn compare(original: CheckReport, file: CheckReport) -> CompareReport {
+    let mut changed = Vec::new();
+    for (a, b) in original.layers.iter().zip(&file.layers) {
+        let differs = (a.length_mm - b.length_mm).abs() > 0.01
+            || (a.filament_mm - b.filament_mm).abs() > 1e-4
+            || (a.in_air_mm - b.in_air_mm).abs() > 0.01;
+        if differs {
+            changed.push((b.layer, b.z, a.into(), b.into()));
+        }
+    }
+    CompareReport {
+        filament_added_mm: file.filament_mm - original.filament_mm,
+        original,
+        file,
+        changed,
+    }
+}
+
+impl fmt::Display for CompareReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let line = |r: &CheckReport| {
+            let pct = |x: f64| {
+                if r.length_mm > 0.0 {
+                    100.0 * x / r.length_mm
+                } else {
+                    0.0
+                }
+            };
+            format!(
+                "{:<40} {:>10.0} {:>9.2} % {:>8.2} % {:>9.1} {:>10.1}",
+                r.file,
+                r.length_mm,
+                pct(r.supported_mm),
+                pct(r.bridged_mm),
+                r.in_air_mm,
+                r.filament_mm
+            )
+        };
+        writeln!(
+            f,
+            "{:<40} {:>10} {:>11} {:>10} {:>9} {:>10}",
+            "file", "length mm", "supported", "bridged", "in air mm", "filament mm"
+        )?;
+        writeln!(f, "{}", line(&self.original))?;
+        writeln!(f, "{}", line(&self.file))?;
+        writeln!(f, "filament added: {:+.1} mm", self.filament_added_mm)?;
+        if self.changed.is_empty() {
+            writeln!(f, "no layer differs")?;
+            return Ok(());
+        }
+        writeln!(f)?;
+        writeln!(
+            f,
+            "{:>5} {:>7}  {:>19} {:>19} {:>15}",
+            "layer", "Z mm", "in air mm (was/now)", "bridged (was/now)", "density"
+        )?;
+        for (layer, z, a, b) in &self.changed {
+            writeln!(
+                f,
+                "{:>5} {:>7.2}  {:>9.1} {:>9.1} {:>9.1} {:>9.1} {:>7.2} {:>7.2}",
+                layer,
+                z,
+                a.in_air_mm,
+                b.in_air_mm,
+                a.bridged_mm,
+                b.bridged_mm,
+                a.density,
+                b.density
+            )?;
+        }
         Ok(())
     }
 }

@@ -269,3 +269,44 @@ fn a_folder_of_files_with_one_bad_file() {
     }
     assert!(!out.join("broken.gcode").exists());
 }
+
+#[test]
+fn check_compare_agrees_with_the_report() {
+    let dir = tempfile::tempdir().unwrap();
+    let f = sample("tri_overhang_prusa_rel.gcode");
+    let out = dir.path().join("o.gcode");
+    let report = dir.path().join("r.json");
+    let o = run(&[
+        "process",
+        f.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--report",
+        report.to_str().unwrap(),
+    ]);
+    assert!(o.status.success());
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    let added = r["files"][0]["report"]["filament_added_mm"]
+        .as_f64()
+        .unwrap();
+    let o = run(&[
+        "check",
+        "--json",
+        "--compare",
+        f.to_str().unwrap(),
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let c: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let compared = c["filament_added_mm"].as_f64().unwrap();
+    assert!(
+        (compared - added).abs() < 0.01,
+        "check says {compared}, the report {added}"
+    );
+    let changed = c["changed"].as_array().unwrap();
+    assert_eq!(changed.len(), 1, "only the rewritten layer differs");
+    assert!(
+        c["file"]["in_air_mm"].as_f64().unwrap() < c["original"]["in_air_mm"].as_f64().unwrap()
+    );
+}
