@@ -839,6 +839,8 @@ pub struct ProcessReport {
     pub rewrites: Vec<RewriteStats>,
     pub loops: usize,
     pub filament_added_mm: f64,
+    pub filament_added_cm3: f64,
+    pub filament_added_g: f64,
     pub time_added_s: f64,
     pub layers: usize,
 }
@@ -1024,6 +1026,8 @@ pub fn process<R: BufRead, W: Write>(
         }
         Ok(())
     })?;
+    report.filament_added_cm3 = report.filament_added_mm * filament_area / 1000.0;
+    report.filament_added_g = report.filament_added_cm3 * density;
     if let Some(last) = held {
         if report.regions_rewritten > 0 {
             output.write_all(&update_footer(
@@ -1039,6 +1043,59 @@ pub fn process<R: BufRead, W: Write>(
     }
     report.slicer = reader.facts().slicer.name().to_string();
     Ok(report)
+}
+
+/// Updates the statistics a binary G-code file states in its metadata blocks (`key=value`
+/// lines: filament used, estimated printing time) for what the rewrite added, and records
+/// PrusaSlicer writes the same statistics into the print and slicer metadata.
+pub fn update_binary_metadata(file: &mut crate::bgcode::Bgcode, report: &ProcessReport) {
+    use crate::bgcode::BlockKind;
+    if report.regions_rewritten == 0 {
+        return;
+    }
+    for block in &mut file.blocks {
+        if !matches!(
+            block.kind,
+            BlockKind::PrintMetadata | BlockKind::SlicerMetadata
+        ) {
+            continue;
+        }
+        // `key=value` becomes `; key = value` for the footer logic, and back.
+        let mut old_g = None;
+        let mut out = Vec::with_capacity(block.payload.len() + 32);
+        let mut changed = false;
+        for line in block.payload.split_inclusive(|&b| b == b'\n') {
+            let body = strip_terminator(line);
+            let text = String::from_utf8_lossy(body);
+            let new = text.split_once('=').and_then(|(k, v)| {
+                let as_footer = format!("; {} = {}", k.trim(), v.trim());
+                footer_line(
+                    &as_footer,
+                    report.filament_added_mm,
+                    report.filament_added_cm3,
+                    report.filament_added_g,
+                    report.time_added_s,
+                    &mut old_g,
+                )
+                .map(|f| {
+                    let v = f.split_once(" = ").map(|x| x.1).unwrap_or("");
+                    format!("{}={}", k, v)
+                })
+            });
+            match new {
+                Some(n) => {
+                    changed = true;
+                    out.extend_from_slice(n.as_bytes());
+                    out.extend_from_slice(&line[body.len()..]);
+                }
+                None => out.extend_from_slice(line),
+            }
+        }
+        if changed {
+            block.payload = out;
+            block.forget_stored();
+        }
+    }
 }
 
 /// Rewrites the slicer's statistics comments (PrusaSlicer family: `; filament used [mm] = `,

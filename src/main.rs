@@ -67,6 +67,13 @@ enum Command {
         #[command(flatten)]
         rewrite: RewriteArgs,
     },
+    /// Convert binary G-code (.bgcode) to text G-code.
+    Convert {
+        /// A .bgcode file (recognised by its content, whatever its name).
+        input: PathBuf,
+        /// The text G-code to write.
+        output: PathBuf,
+    },
     /// List the built-in settings profiles, or print one as YAML to copy and edit.
     Profiles {
         #[command(subcommand)]
@@ -353,6 +360,33 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             emit(&rep, json)?;
             Ok(ExitCode::SUCCESS)
         }
+        Command::Convert { input, output: out } => {
+            let data = std::fs::read(&input).map_err(|source| printonair::Error::Read {
+                path: input.clone(),
+                source,
+            })?;
+            if !printonair::bgcode::is_bgcode(&data) {
+                anyhow::bail!(
+                    "{} is text G-code; converting text to binary G-code is not supported yet",
+                    input.display()
+                );
+            }
+            let decoded =
+                printonair::bgcode::decode(&data).map_err(|e| printonair::Error::NotGcode {
+                    path: input.clone(),
+                    reason: format!("the binary G-code is damaged: {e}"),
+                })?;
+            let text = decoded.to_ascii();
+            output::write_atomic(&out, |w| {
+                use std::io::Write;
+                w.write_all(&text)
+                    .map_err(|source| printonair::Error::Write {
+                        path: out.clone(),
+                        source,
+                    })
+            })?;
+            Ok(ExitCode::SUCCESS)
+        }
         Command::Profiles { action } => {
             let text = match action {
                 None => {
@@ -527,8 +561,26 @@ fn rewrite_file(
         path: file.to_path_buf(),
         source,
     };
-    let report = match dest {
-        Some(dest) => output::write_atomic(dest, |w| {
+    let report = match (dest, opened.binary) {
+        (Some(dest), Some(binary)) => {
+            // Binary G-code: rewrite the text in memory, then encode it as the input was.
+            let mut text = Vec::new();
+            let report =
+                emit::process(reader, opened.config, &opts, &mut text).map_err(read_err)?;
+            let mut updated = printonair::bgcode::with_gcode(&binary, &text);
+            emit::update_binary_metadata(&mut updated, &report);
+            let bytes = printonair::bgcode::encode(&updated);
+            output::write_atomic(dest, |w| {
+                use std::io::Write;
+                w.write_all(&bytes)
+                    .map_err(|source| printonair::Error::Write {
+                        path: dest.to_path_buf(),
+                        source,
+                    })
+            })?;
+            report
+        }
+        (Some(dest), None) => output::write_atomic(dest, |w| {
             emit::process(reader, opened.config, &opts, w).map_err(|e| {
                 // Reading and writing share the stream; say which side failed.
                 if e.kind() == std::io::ErrorKind::Other {
@@ -541,7 +593,7 @@ fn rewrite_file(
                 }
             })
         })?,
-        None => {
+        (None, _) => {
             emit::process(reader, opened.config, &opts, &mut std::io::sink()).map_err(read_err)?
         }
     };

@@ -114,7 +114,7 @@ fn bad_inputs_never_panic() {
     }
     let random = write("random.gcode", &junk);
     assert_clean_failure(&poa(&["info", random.to_str().unwrap()]), "random bytes");
-    let bgcode = write("x.bgcode", b"GCDE\x01\x00\x00\x00\x01\x00");
+    let bgcode = write("x.bgcode", b"GCDE\x01\x00\x00\x00\x01\x00\x01\x00");
     assert_clean_failure(&poa(&["info", bgcode.to_str().unwrap()]), "binary gcode");
     assert_clean_failure(&poa(&["info", dir.path().to_str().unwrap()]), "directory");
     let missing = dir.path().join("missing.gcode");

@@ -1,0 +1,122 @@
+//! Binary G-code through slicer mode: decoded, rewritten, written back as binary G-code with
+//! the same blocks, thumbnails and encodings, valid checksums and updated statistics.
+
+mod common;
+
+use std::process::Command;
+
+use common::*;
+use printonair::bgcode::{self, BlockKind};
+
+/// A real PrusaSlicer 2.8 .bgcode (its metadata and thumbnails) carrying a specimen's G-code.
+fn specimen_bgcode() -> Vec<u8> {
+    let real = read(&shared().join("reference/bgcode-samples/mini_cube_ps2.8.1.bgcode"));
+    let decoded = bgcode::decode(&real).unwrap();
+    let text = read(&sample("rect_overhang_prusa_rel.gcode"));
+    bgcode::encode(&bgcode::with_gcode(&decoded, &text))
+}
+
+#[test]
+fn slicer_mode_rewrites_binary_gcode_in_place() {
+    let dir = tempfile::tempdir().unwrap();
+    // PrusaSlicer hands scripts a temporary name that does not end in .gcode.
+    let f = dir.path().join("export.gcode.pp");
+    let input = specimen_bgcode();
+    std::fs::write(&f, &input).unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_poa"))
+        .arg(&f)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+
+    let out = std::fs::read(&f).unwrap();
+    assert!(bgcode::is_bgcode(&out), "still binary");
+    let before = bgcode::decode(&input).unwrap();
+    let after = bgcode::decode(&out).expect("valid blocks and checksums");
+    // Same block structure around the G-code; thumbnails and printer metadata untouched.
+    let kinds = |b: &bgcode::Bgcode| -> Vec<BlockKind> {
+        b.blocks
+            .iter()
+            .filter(|x| x.kind != BlockKind::GCode)
+            .map(|x| x.kind)
+            .collect()
+    };
+    assert_eq!(kinds(&before), kinds(&after));
+    for (a, b) in before.blocks.iter().zip(&after.blocks) {
+        if matches!(a.kind, BlockKind::Thumbnail | BlockKind::PrinterMetadata) {
+            assert_eq!(a.payload, b.payload, "{:?} unchanged", a.kind);
+        }
+    }
+    let gcode_blocks = |b: &bgcode::Bgcode| -> Vec<(bgcode::Compression, bgcode::BlockParams)> {
+        b.blocks
+            .iter()
+            .filter(|x| x.kind == BlockKind::GCode)
+            .map(|x| (x.compression, x.params))
+            .take(1)
+            .collect()
+    };
+    assert_eq!(
+        gcode_blocks(&before),
+        gcode_blocks(&after),
+        "same compression and encoding"
+    );
+    // The G-code has poa's loops and reads back with the same layers.
+    let text = after.gcode_text();
+    assert_eq!(
+        String::from_utf8_lossy(&text).matches(";POA_BEGIN").count(),
+        1
+    );
+    let (layers, _) = read_layers(&text, false);
+    assert_eq!(layer_count(&layers), 100);
+    // A second run changes nothing.
+    let o = Command::new(env!("CARGO_BIN_EXE_poa"))
+        .arg(&f)
+        .output()
+        .unwrap();
+    assert!(o.status.success());
+    assert_eq!(std::fs::read(&f).unwrap(), out);
+}
+
+#[test]
+fn damaged_binary_gcode_is_refused_untouched() {
+    let dir = tempfile::tempdir().unwrap();
+    let f = dir.path().join("bad.bgcode");
+    let mut data = specimen_bgcode();
+    let n = data.len();
+    data[n / 2] ^= 0x55;
+    std::fs::write(&f, &data).unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_poa"))
+        .arg(&f)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("damaged") && err.trim().lines().count() <= 2,
+        "{err}"
+    );
+    assert_eq!(std::fs::read(&f).unwrap(), data);
+}
+
+#[test]
+fn convert_binary_to_text_matches_the_reference() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("o.gcode");
+    let src = shared().join("reference/bgcode-samples/mini_cube_ps2.8.1.bgcode");
+    let o = Command::new(env!("CARGO_BIN_EXE_poa"))
+        .args(["convert", src.to_str().unwrap(), out.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let want = read(&shared().join("reference/bgcode-samples/mini_cube_ps2.8.1_ref.gcode"));
+    assert!(std::fs::read(&out).unwrap() == want);
+    // info and analyze read binary files too.
+    let o = Command::new(env!("CARGO_BIN_EXE_poa"))
+        .args(["info", "--json", src.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["slicer"], "PrusaSlicer");
+    assert!(v["layers"].as_u64().unwrap() > 10);
+}
