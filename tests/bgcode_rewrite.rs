@@ -120,3 +120,43 @@ fn convert_binary_to_text_matches_the_reference() {
     assert_eq!(v["slicer"], "PrusaSlicer");
     assert!(v["layers"].as_u64().unwrap() > 10);
 }
+
+/// libbgcode itself (through its Python wrapper, `pip install pybgcode-jneilliii`) reads what
+/// poa wrote, checksums verified, and sees the same text poa meant.
+#[test]
+fn the_reference_library_reads_what_poa_writes() {
+    let dir = tempfile::tempdir().unwrap();
+    let f = dir.path().join("part.bgcode");
+    std::fs::write(&f, specimen_bgcode()).unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_poa"))
+        .arg(&f)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = dir.path().join("ref.gcode");
+    let script = "import pybgcode, sys\n\
+        i = pybgcode.open(sys.argv[1], 'rb'); o = pybgcode.open(sys.argv[2], 'w')\n\
+        r = pybgcode.from_binary_to_ascii(i, o, True)\n\
+        pybgcode.close(i); pybgcode.close(o)\n\
+        print(pybgcode.translate_result(r))\n";
+    let o = Command::new("python3")
+        .arg("-c")
+        .arg(script)
+        .arg(&f)
+        .arg(&text)
+        .output()
+        .expect("python3");
+    assert!(
+        o.status.success(),
+        "pybgcode is needed (pip install pybgcode-jneilliii): {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert_eq!(String::from_utf8_lossy(&o.stdout).trim(), "Success");
+    let ours = bgcode::decode(&std::fs::read(&f).unwrap())
+        .unwrap()
+        .to_ascii();
+    assert!(
+        std::fs::read(&text).unwrap() == ours,
+        "libbgcode and poa disagree on the text"
+    );
+}
