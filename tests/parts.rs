@@ -5,45 +5,20 @@
 mod common;
 
 use common::*;
-use geo::MultiPolygon;
 use printonair::check::{check_layer, CheckOptions, Support};
-use printonair::emit::{self, ObjectFilter, ProcessOptions, ProcessReport};
-use printonair::layers::{
-    filament_area, Layer, LayerKind, LayerReader, ReaderOptions, SlicerConfig,
-};
-use printonair::poa::PoaSettings;
-use printonair::report;
-
-fn process(data: &[u8]) -> (Vec<u8>, ProcessReport) {
-    let config = SlicerConfig::parse(data);
-    let opts = ProcessOptions {
-        detect: report::detect_options(&config),
-        settings: PoaSettings::default(),
-        objects: ObjectFilter::default(),
-        header: format!("{} test", emit::HEADER_MARK),
-    };
-    let mut out = Vec::new();
-    let rep = emit::process(data, config, &opts, &mut out).unwrap();
-    (out, rep)
-}
+use printonair::layers::{filament_area, Layer, LayerKind, SlicerConfig};
+use printonair::poa::BridgeMode;
 
 fn layers_of(data: &[u8]) -> Vec<Layer> {
-    let config = SlicerConfig::parse(data);
-    LayerReader::new(
-        data,
-        ReaderOptions {
-            keep_raw: false,
-            config,
-        },
-    )
-    .map(|l| l.unwrap())
-    .filter(|l| l.kind == LayerKind::Layer)
-    .collect()
+    all_layers(data)
+        .into_iter()
+        .filter(|l| l.kind == LayerKind::Layer)
+        .collect()
 }
 
 /// Processes `data` and checks every rewritten layer. Returns the number of regions rewritten.
 fn rewrite_and_check(data: &[u8], what: &str) -> usize {
-    let (out, rep) = process(data);
+    let (out, rep) = rewrite(data, BridgeMode::Keep);
     if let Ok(dir) = std::env::var("POA_KEEP") {
         // For a closer look at a failure: the input and the rewrite.
         let name = what.replace(' ', "_");
@@ -89,7 +64,6 @@ fn rewrite_and_check(data: &[u8], what: &str) -> usize {
     }
     // The rewritten file reads back with the same layers.
     assert_eq!(layers.len(), layers_of(data).len(), "{what}");
-    let _ = MultiPolygon::<f64>::new(Vec::new());
     rep.regions_rewritten
 }
 

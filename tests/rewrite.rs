@@ -5,44 +5,11 @@ mod common;
 use common::*;
 use geo::{Area, MultiPolygon};
 use printonair::check::{check_layer, CheckOptions, Support};
-use printonair::emit::{self, ObjectFilter, ProcessOptions, ProcessReport};
+use printonair::emit;
 use printonair::geometry::{self, difference, footprint, offset, printed_area, AreaOptions};
-use printonair::layers::{Layer, LayerKind, LayerReader, ReaderOptions, SlicerConfig};
-use printonair::poa::{BridgeMode, PoaSettings};
+use printonair::layers::{Layer, LayerKind, SlicerConfig};
+use printonair::poa::BridgeMode;
 use printonair::report;
-
-fn options(config: &SlicerConfig, bridges: BridgeMode) -> ProcessOptions {
-    ProcessOptions {
-        detect: report::detect_options(config),
-        settings: PoaSettings {
-            bridges,
-            ..Default::default()
-        },
-        objects: ObjectFilter::default(),
-        header: format!("{} test", emit::HEADER_MARK),
-    }
-}
-
-fn process(data: &[u8], bridges: BridgeMode) -> (Vec<u8>, ProcessReport) {
-    let config = SlicerConfig::parse(data);
-    let opts = options(&config, bridges);
-    let mut out = Vec::new();
-    let rep = emit::process(data, config, &opts, &mut out).unwrap();
-    (out, rep)
-}
-
-fn layers_of(data: &[u8]) -> Vec<Layer> {
-    let config = SlicerConfig::parse(data);
-    LayerReader::new(
-        data,
-        ReaderOptions {
-            keep_raw: true,
-            config,
-        },
-    )
-    .map(|l| l.unwrap())
-    .collect()
-}
 
 fn point_in(area: &MultiPolygon<f64>, p: [f64; 2]) -> bool {
     use geo::Contains;
@@ -69,14 +36,14 @@ fn check_specimen(name: &str, suffix: &str) {
     } else {
         BridgeMode::Keep
     };
-    let (out, rep) = process(&original, bridges);
+    let (out, rep) = rewrite(&original, bridges);
     let what = format!("{name} {suffix}");
     assert_eq!(rep.regions_rewritten, 1, "{what}: {rep:?}");
     let blocks = poa_blocks(&out);
     assert_eq!(blocks.len(), 1, "{what}");
 
-    let before = layers_of(&original);
-    let after = layers_of(&out);
+    let before = all_layers(&original);
+    let after = all_layers(&out);
     assert_eq!(layer_count(&before), layer_count(&after), "{what}");
     let fa = SlicerConfig::parse(&original).filament_diameter();
     let fa = printonair::layers::filament_area(fa);
@@ -271,7 +238,7 @@ fn bridge_with_bridges_poa_relative_and_absolute() {
 #[test]
 fn bridges_are_kept_by_default() {
     let original = read(&sample("bridge_prusa_rel.gcode"));
-    let (out, rep) = process(&original, BridgeMode::Keep);
+    let (out, rep) = rewrite(&original, BridgeMode::Keep);
     assert_eq!(rep.regions_rewritten, 0);
     assert_eq!(rep.skipped.len(), 1);
     assert!(poa_blocks(&out).is_empty());
@@ -281,9 +248,9 @@ fn bridges_are_kept_by_default() {
 fn filament_bookkeeping_is_exact_in_both_e_modes() {
     for suffix in ["rel", "abs"] {
         let original = read(&sample(&format!("rect_overhang_prusa_{suffix}.gcode")));
-        let (out, rep) = process(&original, BridgeMode::Keep);
+        let (out, rep) = rewrite(&original, BridgeMode::Keep);
         let total = |d: &[u8]| -> f64 {
-            layers_of(d)
+            all_layers(d)
                 .iter()
                 .flat_map(|l| &l.paths)
                 .map(|p| p.e())
@@ -299,7 +266,7 @@ fn filament_bookkeeping_is_exact_in_both_e_modes() {
 #[test]
 fn running_twice_changes_nothing() {
     let original = read(&sample("rect_overhang_prusa_rel.gcode"));
-    let (out, _) = process(&original, BridgeMode::Keep);
+    let (out, _) = rewrite(&original, BridgeMode::Keep);
     assert!(emit::already_processed(&out[..out.len().min(65536)]));
     assert!(!emit::already_processed(&original[..65536]));
 }
@@ -313,10 +280,10 @@ fn cura_slic3r_and_comment_less_files() {
         "rect_overhang_nocomments.gcode",
     ] {
         let original = read(&sample(name));
-        let (out, rep) = process(&original, BridgeMode::Keep);
+        let (out, rep) = rewrite(&original, BridgeMode::Keep);
         assert_eq!(rep.regions_rewritten, 1, "{name}");
         let blocks = poa_blocks(&out);
-        let after = layers_of(&out);
+        let after = all_layers(&out);
         let fa =
             printonair::layers::filament_area(SlicerConfig::parse(&original).filament_diameter());
         let i = after
@@ -338,7 +305,7 @@ fn cura_slic3r_and_comment_less_files() {
             .count();
         assert_eq!(bad, 0, "{name}: poa strands unsupported");
         let total = |d: &[u8]| -> f64 {
-            layers_of(d)
+            all_layers(d)
                 .iter()
                 .flat_map(|l| &l.paths)
                 .map(|p| p.e())

@@ -24,6 +24,32 @@ pub fn sample(name: &str) -> PathBuf {
     repo().join("sample-gcode").join(name)
 }
 
+/// Rewrites `data` with default settings (bridges as given), as `poa process` does.
+pub fn rewrite(
+    data: &[u8],
+    bridges: printonair::poa::BridgeMode,
+) -> (Vec<u8>, printonair::emit::ProcessReport) {
+    use printonair::emit::{self, ObjectFilter, ProcessOptions};
+    let config = SlicerConfig::parse(data);
+    let opts = ProcessOptions {
+        detect: printonair::report::detect_options(&config),
+        settings: printonair::poa::PoaSettings {
+            bridges,
+            ..Default::default()
+        },
+        objects: ObjectFilter::default(),
+        header: format!("{} test", emit::HEADER_MARK),
+    };
+    let mut out = Vec::new();
+    let rep = emit::process(data, config, &opts, &mut out).unwrap();
+    (out, rep)
+}
+
+/// Every block of a file (preamble included), with raw bytes.
+pub fn all_layers(data: &[u8]) -> Vec<Layer> {
+    read_layers(data, true).0
+}
+
 /// Reads a file the way the CLI does (config from the file itself, no environment).
 pub fn read_layers(data: &[u8], keep_raw: bool) -> (Vec<Layer>, LayerReader<&[u8]>) {
     let config = SlicerConfig::parse(data);
