@@ -106,6 +106,12 @@ enum Command {
         /// Compare with this original: both side by side, and the layers that changed.
         #[arg(long, value_name = "ORIGINAL")]
         compare: Option<PathBuf>,
+        /// Also draw this layer (1 = first) with its bridged and in-air points, into -o.
+        #[arg(long, value_name = "N", requires = "output")]
+        svg_layer: Option<usize>,
+        /// Where --svg-layer writes its SVG.
+        #[arg(short, long, value_name = "OUT.svg")]
+        output: Option<PathBuf>,
     },
     /// Draw layers as SVG: the layer below, the strands by role, the regions over air.
     #[command(group(clap::ArgGroup::new("what").required(true).args(["layer", "regions"])))]
@@ -454,6 +460,8 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             max_bridge,
             fail_in_air,
             compare,
+            svg_layer,
+            output: svg_out,
         } => {
             anyhow::ensure!(
                 (0.0..0.5).contains(&overlap_min),
@@ -467,9 +475,30 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                 ..Default::default()
             };
             let name = file.display().to_string();
-            let rep = report::check(opened.reader, opened.config, &opts, &name)
-                .map_err(|source| printonair::Error::Read { path: file, source })?;
+            let rep =
+                report::check(opened.reader, opened.config, &opts, &name).map_err(|source| {
+                    printonair::Error::Read {
+                        path: file.clone(),
+                        source,
+                    }
+                })?;
             let in_air = rep.in_air_mm;
+            if let (Some(n), Some(out)) = (svg_layer, svg_out) {
+                let again = input::open(&file)?;
+                let title = file
+                    .file_name()
+                    .map(|f| f.to_string_lossy().to_string())
+                    .unwrap_or_default();
+                let svg = preview::check_layer_svg(again.reader, again.config, &opts, n, &title)
+                    .map_err(|source| printonair::Error::Read {
+                        path: file.clone(),
+                        source,
+                    })?;
+                let Some(svg) = svg else {
+                    anyhow::bail!("{} has no layer {n}", file.display());
+                };
+                write_file(&out, &svg)?;
+            }
             if let Some(orig) = compare {
                 let o = input::open(&orig)?;
                 let orig_name = orig.display().to_string();

@@ -23,6 +23,8 @@ pub struct Scene<'a> {
     pub below: &'a MultiPolygon<f64>,
     /// Regions with their file-wide numbers.
     pub regions: &'a [(usize, &'a Region)],
+    /// Deposition check samples to mark (bridged and in-air ones), from `poa check`.
+    pub samples: &'a [crate::check::Sample],
 }
 
 /// Colour of a role; close to the slicer previews users know.
@@ -108,16 +110,35 @@ pub fn render(scene: &Scene<'_>) -> String {
         (header * 0.32).min(3.2),
         escape(scene.title)
     );
+    let what = if scene.samples.is_empty() {
+        format!(
+            "{} region{} over air",
+            scene.regions.len(),
+            if scene.regions.len() == 1 { "" } else { "s" }
+        )
+    } else {
+        let sum = |k: crate::check::Support| -> f64 {
+            scene
+                .samples
+                .iter()
+                .filter(|x| x.support == k)
+                .map(|x| x.length)
+                .sum()
+        };
+        format!(
+            "deposition check: {:.1} mm bridged, {:.1} mm in air",
+            sum(crate::check::Support::Bridged),
+            sum(crate::check::Support::InAir)
+        )
+    };
     let _ = writeln!(
         s,
-        r##"<text x="1" y="{:.2}" font-size="{:.2}" fill="#444">layer {} at Z {:.2} mm, {:.2} mm high; {} region{} over air</text>"##,
+        r##"<text x="1" y="{:.2}" font-size="{:.2}" fill="#444">layer {} at Z {:.2} mm, {:.2} mm high; {what}</text>"##,
         header * 0.85,
         (header * 0.24).min(2.4),
         scene.layer.index + 1,
         scene.layer.z,
         scene.layer.height,
-        scene.regions.len(),
-        if scene.regions.len() == 1 { "" } else { "s" }
     );
 
     // Millimetre grid: fine lines every mm when there is room, strong every 10 mm, labelled.
@@ -212,6 +233,25 @@ pub fn render(scene: &Scene<'_>) -> String {
     }
     let _ = writeln!(s, "</g>");
 
+    // Check results: unsupported samples as dots on the strands.
+    if !scene.samples.is_empty() {
+        let _ = writeln!(s, "<g>");
+        for smp in scene.samples {
+            let colour = match smp.support {
+                crate::check::Support::Supported => continue,
+                crate::check::Support::Bridged => "#f4a300",
+                crate::check::Support::InAir => "#d7191c",
+            };
+            let _ = writeln!(
+                s,
+                r#"<circle cx="{:.3}" cy="{:.3}" r="0.18" fill="{colour}"/>"#,
+                tx(smp.point[0]),
+                ty(smp.point[1])
+            );
+        }
+        let _ = writeln!(s, "</g>");
+    }
+
     // Regions: tinted, outlined, numbered.
     for (id, r) in scene.regions {
         let c = region_color(r.kind);
@@ -277,11 +317,17 @@ fn legend(s: &mut String, scene: &Scene<'_>, x: f64, top: f64) {
         y - 1.6,
         x + 5.0
     );
-    for kind in [
-        RegionKind::Overhang,
-        RegionKind::Bridge,
-        RegionKind::Floating,
-    ] {
+    // A check picture shows support, not regions.
+    let kinds: &[RegionKind] = if scene.samples.is_empty() {
+        &[
+            RegionKind::Overhang,
+            RegionKind::Bridge,
+            RegionKind::Floating,
+        ]
+    } else {
+        &[]
+    };
+    for &kind in kinds {
         y += line;
         let c = region_color(kind);
         let _ = writeln!(
@@ -291,6 +337,21 @@ fn legend(s: &mut String, scene: &Scene<'_>, x: f64, top: f64) {
             x + 5.0,
             kind.name()
         );
+    }
+    if !scene.samples.is_empty() {
+        for (colour, what) in [
+            ("#f4a300", "bridged (anchored both ends)"),
+            ("#d7191c", "printed in air"),
+        ] {
+            y += line;
+            let _ = writeln!(
+                s,
+                r#"<circle cx="{:.2}" cy="{:.2}" r="0.7" fill="{colour}"/><text x="{:.2}" y="{y:.2}">{what}</text>"#,
+                x + 2.0,
+                y - 0.6,
+                x + 5.0
+            );
+        }
     }
     y += line * 0.7;
     for role in roles_present(scene) {
@@ -484,6 +545,7 @@ pub fn preview_layer<R: BufRead>(
                 layer: &d.layer,
                 below: &d.below,
                 regions: &numbered,
+                samples: &[],
             }));
             return Err(io::Error::other("done"));
         }
@@ -530,6 +592,7 @@ pub fn preview_regions<R: BufRead>(
             layer: &d.layer,
             below: &d.below,
             regions: &numbered,
+            samples: &[],
         });
         for (id, r) in &numbered {
             rows.push(IndexRow {
@@ -549,4 +612,45 @@ pub fn preview_regions<R: BufRead>(
         layers,
         index: index_html(title, &rows),
     })
+}
+
+/// Draws layer `number` (1-based) with the deposition check's bridged and in-air samples.
+pub fn check_layer_svg<R: BufRead>(
+    input: R,
+    config: SlicerConfig,
+    opts: &crate::check::CheckOptions,
+    number: usize,
+    title: &str,
+) -> io::Result<Option<String>> {
+    let fa = crate::layers::filament_area(config.filament_diameter());
+    let reader = LayerReader::new(
+        input,
+        ReaderOptions {
+            keep_raw: false,
+            config,
+        },
+    );
+    let mut below: Option<Layer> = None;
+    for layer in reader {
+        let layer = layer?;
+        if layer.kind != LayerKind::Layer {
+            continue;
+        }
+        if layer.index + 1 == number {
+            let c = crate::check::check_layer(below.as_ref(), &layer, fa, opts, true);
+            let area = below
+                .as_ref()
+                .map(|b| geometry::printed_area(b, &geometry::AreaOptions::default()))
+                .unwrap_or_else(|| MultiPolygon::new(Vec::new()));
+            return Ok(Some(render(&Scene {
+                title,
+                layer: &layer,
+                below: &area,
+                regions: &[],
+                samples: &c.samples,
+            })));
+        }
+        below = Some(layer);
+    }
+    Ok(None)
 }

@@ -233,3 +233,32 @@ fn preview_draws_a_layer_and_the_regions() {
     let out = poa(&["preview", f.to_str().unwrap(), "-o", svg.to_str().unwrap()]);
     assert!(!out.status.success(), "--layer or --regions is required");
 }
+
+#[test]
+fn check_draws_a_layer_with_its_unsupported_points() {
+    let dir = tempfile::tempdir().unwrap();
+    let f = sample("rect_overhang_prusa_rel.gcode");
+    let svg = dir.path().join("c.svg");
+    let out = poa(&[
+        "check",
+        f.to_str().unwrap(),
+        "--svg-layer",
+        "51",
+        "-o",
+        svg.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = std::fs::read_to_string(&svg).unwrap();
+    assert!(text.contains("deposition check"));
+    assert!(
+        text.matches("#d7191c").count() > 100,
+        "in-air points of the overhang drawn"
+    );
+    // --fail-in-air for scripts.
+    let out = poa(&["check", f.to_str().unwrap(), "--fail-in-air", "5"]);
+    assert_eq!(out.status.code(), Some(2));
+}
