@@ -643,13 +643,7 @@ fn rewrite_file(
             ));
         }
         for s in &report.skipped {
-            t.push_str(&format!(
-                "poa: region {} on layer {} ({}) left as sliced: {}\n",
-                s.region,
-                s.layer,
-                s.kind.name(),
-                s.reason
-            ));
+            t.push_str(&format!("poa: {}\n", skipped_line(s)));
         }
         write_stdout(&t)?;
     }
@@ -816,14 +810,10 @@ fn process_command(
                     r.time_added_s,
                     if dry_run { " (dry run: nothing written)" } else { "" }
                 ));
-                for s in &r.skipped {
-                    text.push_str(&format!(
-                        "  region {} (layer {}, {}): left as sliced: {}\n",
-                        s.region,
-                        s.layer,
-                        s.kind.name(),
-                        s.reason
-                    ));
+                if !args.verbose {
+                    for s in &r.skipped {
+                        text.push_str(&format!("  {}\n", skipped_line(s)));
+                    }
                 }
             }
             Ok(None) => {
@@ -857,6 +847,16 @@ fn process_command(
     } else {
         ExitCode::SUCCESS
     })
+}
+
+fn skipped_line(s: &emit::SkippedRegion) -> String {
+    format!(
+        "region {} (layer {}, {}) left as sliced: {}",
+        s.region,
+        s.layer,
+        s.kind.name(),
+        s.reason
+    )
 }
 
 fn same_file(a: &std::path::Path, b: &std::path::Path) -> bool {
