@@ -293,6 +293,23 @@ pub fn rewrite_layer(
     replaceable.sort_unstable();
     replaceable.dedup();
 
+    // The slicer's bridge infill that reaches into a zone goes whole, anchors included: the
+    // anchors lie over the sparse infill below and would be left hanging there, while loop 1
+    // already ties the region to the wall below.
+    let mut anchors: Vec<(u64, usize)> = Vec::new();
+    for p in layer
+        .paths
+        .iter()
+        .filter(|p| matches!(p.role, Role::BridgeInfill | Role::InternalBridge))
+    {
+        if let Some(z) = rewrites.iter().position(|r| {
+            !clip_lines(std::slice::from_ref(&p.points), &r.plan.zone, true).is_empty()
+        }) {
+            anchors.extend(p.seg_line.iter().map(|l| (*l, z)));
+        }
+    }
+    anchors.sort_unstable();
+    anchors.dedup_by_key(|a| a.0);
     let nl = line_end(&layer.raw);
     // Zone bounding boxes: most lines are nowhere near a zone.
     let boxes: Vec<Option<geo::Rect<f64>>> = rewrites
@@ -339,18 +356,31 @@ pub fn rewrite_layer(
                         )
                     },
                 );
+                let whole = anchors
+                    .binary_search_by(|(l, _)| l.cmp(&number))
+                    .ok()
+                    .map(|k| anchors[k].1);
                 let hits: Vec<(usize, Vec<(f64, f64)>)> = rewrites
                     .iter()
                     .enumerate()
+                    .filter(|(i, _)| whole.is_none_or(|z| z == *i))
                     .filter(|(i, _)| {
-                        boxes[*i].is_some_and(|b| {
-                            hi[0] >= b.min().x
-                                && lo[0] <= b.max().x
-                                && hi[1] >= b.min().y
-                                && lo[1] <= b.max().y
-                        })
+                        whole.is_some() || {
+                            boxes[*i].is_some_and(|b| {
+                                hi[0] >= b.min().x
+                                    && lo[0] <= b.max().x
+                                    && hi[1] >= b.min().y
+                                    && lo[1] <= b.max().y
+                            })
+                        }
                     })
-                    .map(|(i, r)| (i, inside_intervals(&pts, &r.plan.zone)))
+                    .map(|(i, r)| {
+                        if whole.is_some() {
+                            (i, vec![(0.0, polyline_length(&pts))])
+                        } else {
+                            (i, inside_intervals(&pts, &r.plan.zone))
+                        }
+                    })
                     .filter(|(_, iv)| !iv.is_empty())
                     .collect();
                 if !hits.is_empty() {
