@@ -96,15 +96,7 @@ fn open_binary(path: &Path, mut file: File, size: u64) -> Result<Opened> {
                 | BlockKind::PrintMetadata
                 | BlockKind::FileMetadata
         ) {
-            let mut lines = Vec::new();
-            for (k, v) in block.metadata() {
-                lines.extend_from_slice(b"; ");
-                lines.extend_from_slice(k);
-                lines.extend_from_slice(b" = ");
-                lines.extend_from_slice(v);
-                lines.push(b'\n');
-            }
-            config.add_text(&lines);
+            config.add_text(&block.metadata_as_comments());
         }
     }
     let head_len = text.len().min(HEAD_BYTES as usize);

@@ -319,6 +319,19 @@ impl Block {
         self.stored = None;
     }
 
+    /// The metadata as `; key = value` comment lines, the way text G-code states them.
+    pub fn metadata_as_comments(&self) -> Vec<u8> {
+        let mut out = Vec::new();
+        for (k, v) in self.metadata() {
+            out.extend_from_slice(b"; ");
+            out.extend_from_slice(k);
+            out.extend_from_slice(b" = ");
+            out.extend_from_slice(v);
+            out.push(b'\n');
+        }
+        out
+    }
+
     /// `key = value` pairs of an INI metadata block, read as libbgcode reads them: one per
     /// line, split at the first '='; lines without '=' are skipped.
     pub fn metadata(&self) -> Vec<(&[u8], &[u8])> {
@@ -775,15 +788,8 @@ impl Bgcode {
     /// metadata, then the slicer configuration block.
     pub fn to_ascii(&self) -> Vec<u8> {
         let mut out = Vec::new();
-        let write_metadata = |block: &Block, out: &mut Vec<u8>| {
-            for (k, v) in block.metadata() {
-                out.extend_from_slice(b"; ");
-                out.extend_from_slice(k);
-                out.extend_from_slice(b" = ");
-                out.extend_from_slice(v);
-                out.push(b'\n');
-            }
-        };
+        let write_metadata =
+            |block: &Block, out: &mut Vec<u8>| out.extend_from_slice(&block.metadata_as_comments());
 
         if let Some(file_meta) = self.first(BlockKind::FileMetadata) {
             let meta = file_meta.metadata();
