@@ -136,11 +136,13 @@ pub fn printed_area(layer: &Layer, opts: &AreaOptions) -> MultiPolygon<f64> {
                 .iter()
                 .filter(|p| supports(p.role) && !interior(p.role)),
         );
-        let wall_fp = wall_zone(&walls);
+        // Most layers have no hole that the infill test leaves undecided: build the wall zone
+        // only for the first one that needs it.
+        let mut wall_fp: Option<MultiPolygon<f64>> = None;
         let area = close_holes(fp, |hole| {
             contains_any(hole, &inside)
-                || !walled_by(hole, &wall_fp)
                 || hole_width_below(hole, opts.min_hole)
+                || !walled_by(hole, wall_fp.get_or_insert_with(|| wall_zone(&walls)))
         });
         // Infill the perimeters do not enclose (a slicer setting without perimeters somewhere)
         // still holds up the layer above.
@@ -231,7 +233,18 @@ fn walled_by(hole: &LineString<f64>, walls: &MultiPolygon<f64>) -> bool {
 
 /// Whether no disc of diameter `width` fits in the hole.
 fn hole_width_below(hole: &LineString<f64>, width: f64) -> bool {
-    let poly = MultiPolygon::new(vec![Polygon::new(hole.clone(), Vec::new())]);
+    // Cheap verdicts first: a disc fits in neither a box narrower than it nor an area smaller
+    // than its own.
+    if let Some(bb) = hole.bounding_rect() {
+        if bb.width().min(bb.height()) < width {
+            return true;
+        }
+    }
+    let ring = Polygon::new(hole.clone(), Vec::new());
+    if ring.unsigned_area() < std::f64::consts::FRAC_PI_4 * width * width {
+        return true;
+    }
+    let poly = MultiPolygon::new(vec![ring]);
     offset(&poly, -width / 2.0).unsigned_area() < 1e-6
 }
 
@@ -242,43 +255,70 @@ fn close_holes(
     fp: MultiPolygon<f64>,
     mut close: impl FnMut(&LineString<f64>) -> bool,
 ) -> MultiPolygon<f64> {
+    let exteriors: Vec<(Option<geo::Rect<f64>>, Option<geo::Coord<f64>>)> = fp
+        .0
+        .iter()
+        .map(|q| (q.bounding_rect(), q.exterior().0.first().copied()))
+        .collect();
+    let mut kept: Vec<Polygon<f64>> = Vec::with_capacity(fp.0.len());
+    // Filled holes with islands inside them: only these need a boolean union.
     let mut fills: Vec<Polygon<f64>> = Vec::new();
-    for (pi, p) in fp.0.iter().enumerate() {
-        for hole in p.interiors() {
-            if !close(hole) {
+    for (pi, p) in fp.0.into_iter().enumerate() {
+        let (exterior, interiors) = p.into_inner();
+        let mut open = Vec::with_capacity(interiors.len());
+        for hole in interiors {
+            if !close(&hole) {
+                open.push(hole);
                 continue;
             }
-            // Holes wind the other way round; as an exterior it must wind like one.
+            let Some(hb) = hole.bounding_rect() else {
+                continue;
+            };
+            // Islands whose box lies in the hole's box and whose first point lies in the hole.
             let hp = Polygon::new(hole.clone(), Vec::new()).orient(Direction::Default);
-            let bbox = hp.bounding_rect();
-            let nested: Vec<Polygon<f64>> =
-                fp.0.iter()
-                    .enumerate()
-                    .filter(|(qi, q)| {
-                        *qi != pi
-                            && q.exterior().0.first().is_some_and(|c| {
-                                bbox.is_some_and(|b| {
-                                    c.x >= b.min().x
-                                        && c.x <= b.max().x
-                                        && c.y >= b.min().y
-                                        && c.y <= b.max().y
-                                }) && hp.contains(&Point::from(*c))
-                            })
-                    })
-                    .map(|(_, q)| super::exterior_only(q))
-                    .collect();
-            if nested.is_empty() {
+            let nested: Vec<usize> = exteriors
+                .iter()
+                .enumerate()
+                .filter(|(qi, (qb, first))| {
+                    *qi != pi
+                        && qb.is_some_and(|b| {
+                            b.min().x >= hb.min().x
+                                && b.max().x <= hb.max().x
+                                && b.min().y >= hb.min().y
+                                && b.max().y <= hb.max().y
+                        })
+                        && first.is_some_and(|c| hp.contains(&Point::from(c)))
+                })
+                .map(|(qi, _)| qi)
+                .collect();
+            if !nested.is_empty() {
+                // The hole stays in its polygon; the fill around the islands is added below.
+                open.push(hole);
                 fills.push(hp);
-            } else {
-                let inner = unary_union(nested.iter());
-                fills.extend(BooleanOps::difference(&hp, &inner).0);
             }
         }
+        kept.push(Polygon::new(exterior, open));
     }
     if fills.is_empty() {
-        return fp;
+        return MultiPolygon::new(kept);
     }
-    unary_union(fp.0.iter().chain(fills.iter()))
+    // A filled hole covers the islands in it, but not their own open holes: fill the hole
+    // minus the islands' outlines, then union with everything.
+    let islands: Vec<Polygon<f64>> = kept.iter().map(super::exterior_only).collect();
+    let mut parts: Vec<Polygon<f64>> = Vec::new();
+    for hp in fills {
+        let inner: Vec<&Polygon<f64>> = islands
+            .iter()
+            .filter(|q| {
+                q.exterior()
+                    .0
+                    .first()
+                    .is_some_and(|c| hp.contains(&Point::from(*c)))
+            })
+            .collect();
+        parts.extend(BooleanOps::difference(&hp, &unary_union(inner)).0);
+    }
+    unary_union(kept.iter().chain(parts.iter()))
 }
 
 #[cfg(test)]
