@@ -255,7 +255,9 @@ fn close_holes(
     fp: MultiPolygon<f64>,
     mut close: impl FnMut(&LineString<f64>) -> bool,
 ) -> MultiPolygon<f64> {
-    let exteriors: Vec<(Option<geo::Rect<f64>>, Option<geo::Coord<f64>>)> = fp
+    // Each polygon's bounding box and first exterior point, to find islands in a hole.
+    type Outline = (Option<geo::Rect<f64>>, Option<geo::Coord<f64>>);
+    let exteriors: Vec<Outline> = fp
         .0
         .iter()
         .map(|q| (q.bounding_rect(), q.exterior().0.first().copied()))
