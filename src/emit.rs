@@ -928,7 +928,7 @@ pub struct ProcessOptions {
 }
 
 /// Rewrites a whole file, streaming: reads `input`, writes `output`.
-pub fn process<R: BufRead, W: Write>(
+pub fn process<R: BufRead + Send, W: Write>(
     input: R,
     config: SlicerConfig,
     opts: &ProcessOptions,

@@ -23,7 +23,7 @@ use crate::layers::SlicerConfig;
 pub const READ_BUFFER: usize = 256 * 1024;
 
 pub struct Opened {
-    pub reader: Box<dyn BufRead>,
+    pub reader: Box<dyn BufRead + Send>,
     /// The first bytes of the file (up to 64 KiB).
     pub head: Vec<u8>,
     pub config: SlicerConfig,

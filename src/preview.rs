@@ -511,7 +511,7 @@ pub struct Previews {
 }
 
 /// Reads `input` and renders layer `number` (1-based). `None` when the file has no such layer.
-pub fn preview_layer<R: BufRead>(
+pub fn preview_layer<R: BufRead + Send>(
     input: R,
     config: SlicerConfig,
     opts: &DetectOptions,
@@ -560,7 +560,7 @@ pub fn preview_layer<R: BufRead>(
 }
 
 /// Reads `input` and renders every layer that has regions, plus an index.
-pub fn preview_regions<R: BufRead>(
+pub fn preview_regions<R: BufRead + Send>(
     input: R,
     config: SlicerConfig,
     opts: &DetectOptions,

@@ -289,7 +289,7 @@ pub fn detect_options(config: &SlicerConfig) -> DetectOptions {
 }
 
 /// Reads a file through region detection and summarises what lies over air.
-pub fn analyze<R: BufRead>(
+pub fn analyze<R: BufRead + Send>(
     input: R,
     config: SlicerConfig,
     opts: &DetectOptions,

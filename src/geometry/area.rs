@@ -257,11 +257,10 @@ fn close_holes(
 ) -> MultiPolygon<f64> {
     // Each polygon's bounding box and first exterior point, to find islands in a hole.
     type Outline = (Option<geo::Rect<f64>>, Option<geo::Coord<f64>>);
-    let exteriors: Vec<Outline> = fp
-        .0
-        .iter()
-        .map(|q| (q.bounding_rect(), q.exterior().0.first().copied()))
-        .collect();
+    let exteriors: Vec<Outline> =
+        fp.0.iter()
+            .map(|q| (q.bounding_rect(), q.exterior().0.first().copied()))
+            .collect();
     let mut kept: Vec<Polygon<f64>> = Vec::with_capacity(fp.0.len());
     // Filled holes with islands inside them: only these need a boolean union.
     let mut fills: Vec<Polygon<f64>> = Vec::new();

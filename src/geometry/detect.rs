@@ -27,8 +27,35 @@ pub struct Detected {
     pub regions: Vec<Region>,
 }
 
+/// Layers read ahead of the geometry: enough for the next batch while one is computed.
+const READ_AHEAD: usize = 2 * BATCH;
+
 /// Runs detection over `layers`, calling `sink` for each block in order.
-pub fn detect<I, F>(layers: I, opts: &DetectOptions, mut sink: F) -> io::Result<()>
+///
+/// Reading and parsing run on their own thread, ahead of the geometry, so that the two
+/// overlap; the geometry of a batch runs on rayon's pool.
+pub fn detect<I, F>(layers: I, opts: &DetectOptions, sink: F) -> io::Result<()>
+where
+    I: Iterator<Item = io::Result<Layer>> + Send,
+    F: FnMut(Detected) -> io::Result<()>,
+{
+    std::thread::scope(|s| {
+        let (tx, rx) = std::sync::mpsc::sync_channel::<io::Result<Layer>>(READ_AHEAD);
+        s.spawn(move || {
+            for l in layers {
+                let failed = l.is_err();
+                // A closed channel means detection stopped (an error downstream): stop too.
+                if tx.send(l).is_err() || failed {
+                    break;
+                }
+            }
+        });
+        // `rx` is consumed here and dropped on return, which releases a blocked reader.
+        detect_batches(rx.into_iter(), opts, sink)
+    })
+}
+
+fn detect_batches<I, F>(layers: I, opts: &DetectOptions, mut sink: F) -> io::Result<()>
 where
     I: Iterator<Item = io::Result<Layer>>,
     F: FnMut(Detected) -> io::Result<()>,

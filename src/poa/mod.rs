@@ -188,7 +188,10 @@ pub fn plan(
     // Fronts grow inside the zone only (a geodesic offset): past a hole in the region they
     // wrap around it instead of jumping across, so every loop lies beside the previous one.
     // Each front is the previous one grown by one step and cut back to where loops may go.
-    let first = offset(&below_loc, step - w / 2.0);
+    // Only the front within a step of `inner` can grow into it: the rest of sectA's outline
+    // is left out, which keeps every step's offset and cut small.
+    let near = offset(&inner, 2.0 * step + w);
+    let first = intersection(&offset(&below_loc, step - w / 2.0), &near);
     let allowed = union(&inner, &first);
     // Ring parts on the cut are not fronts: clip to just inside the loop area.
     let strictly_inner = offset(&inner, -0.01);
