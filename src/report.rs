@@ -483,7 +483,7 @@ pub struct CheckReport {
 }
 
 /// Simulates the deposition of a whole file, layer by layer.
-pub fn check<R: BufRead>(
+pub fn check<R: BufRead + Send>(
     input: R,
     config: SlicerConfig,
     opts: &CheckOptions,
@@ -509,13 +509,44 @@ pub fn check<R: BufRead>(
         filament_mm: 0.0,
         layers: Vec::new(),
     };
-    let mut below: Option<crate::layers::Layer> = None;
-    for layer in reader {
-        let layer = layer?;
-        if layer.kind != LayerKind::Layer {
-            continue;
+    // Layers are checked in parallel batches; each needs the layer before it, so the last
+    // layer of a batch is carried into the next.
+    const BATCH: usize = 8;
+    let checks = geometry::read_ahead(reader, |layers| {
+        let mut checks: Vec<LayerCheck> = Vec::new();
+        let mut batch: Vec<crate::layers::Layer> = Vec::with_capacity(BATCH + 1);
+        let mut carried = false;
+        loop {
+            let next = layers.next().transpose()?;
+            let end = next.is_none();
+            if let Some(l) = next.filter(|l| l.kind == LayerKind::Layer) {
+                batch.push(l);
+            }
+            if batch.len() < BATCH + usize::from(carried) && !end {
+                continue;
+            }
+            let skip = usize::from(carried);
+            let done: Vec<LayerCheck> = {
+                use rayon::prelude::*;
+                (skip..batch.len())
+                    .into_par_iter()
+                    .map(|i| {
+                        let below = i.checked_sub(1).map(|j| &batch[j]);
+                        crate::check::check_layer(below, &batch[i], fa, opts, false)
+                    })
+                    .collect()
+            };
+            checks.extend(done);
+            if end {
+                return Ok(checks);
+            }
+            let last = batch.pop();
+            batch.clear();
+            batch.extend(last);
+            carried = !batch.is_empty();
         }
-        let c = crate::check::check_layer(below.as_ref(), &layer, fa, opts, false);
+    })?;
+    for c in checks {
         rep.length_mm += c.length_mm;
         rep.supported_mm += c.supported_mm;
         rep.bridged_mm += c.bridged_mm;
@@ -526,7 +557,6 @@ pub fn check<R: BufRead>(
             rep.longest_in_air_at = c.longest_in_air_at.map(|(p, l)| (c.layer, p, l));
         }
         rep.layers.push(c);
-        below = Some(layer);
     }
     Ok(rep)
 }

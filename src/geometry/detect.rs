@@ -39,19 +39,31 @@ where
     I: Iterator<Item = io::Result<Layer>> + Send,
     F: FnMut(Detected) -> io::Result<()>,
 {
+    read_ahead(layers, |rx| detect_batches(rx, opts, sink))
+}
+
+/// Runs `layers` on a thread of its own, `READ_AHEAD` items ahead of `work`, which consumes
+/// them from the iterator it is given. Reading stops at the first error or when `work`
+/// returns.
+pub fn read_ahead<I, T, W>(layers: I, work: W) -> io::Result<T>
+where
+    I: Iterator<Item = io::Result<Layer>> + Send,
+    W: FnOnce(&mut dyn Iterator<Item = io::Result<Layer>>) -> io::Result<T>,
+{
     std::thread::scope(|s| {
         let (tx, rx) = std::sync::mpsc::sync_channel::<io::Result<Layer>>(READ_AHEAD);
         s.spawn(move || {
             for l in layers {
                 let failed = l.is_err();
-                // A closed channel means detection stopped (an error downstream): stop too.
+                // A closed channel means the work stopped (an error downstream): stop too.
                 if tx.send(l).is_err() || failed {
                     break;
                 }
             }
         });
-        // `rx` is consumed here and dropped on return, which releases a blocked reader.
-        detect_batches(rx.into_iter(), opts, sink)
+        // `rx` is dropped on return, which releases a reader blocked on a full channel.
+        let mut it = rx.into_iter();
+        work(&mut it)
     })
 }
 

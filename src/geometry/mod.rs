@@ -15,7 +15,7 @@ pub mod detect;
 pub mod regions;
 
 pub use area::{footprint, printed_area, AreaOptions};
-pub use detect::{detect, Detected};
+pub use detect::{detect, read_ahead, Detected};
 pub use regions::{find_regions, DetectOptions, Region, RegionKind, RoleExtrusion, Tolerance};
 
 use geo::{MultiPolygon, Polygon};
