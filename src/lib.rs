@@ -10,6 +10,7 @@ pub mod bgcode;
 pub mod check;
 pub mod emit;
 pub mod error;
+pub mod estimate;
 pub mod gcode;
 pub mod geometry;
 pub mod input;

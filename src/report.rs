@@ -58,6 +58,10 @@ pub struct InfoReport {
     pub filament_g: f64,
     /// The total the slicer wrote in the file's footer, when it did.
     pub stated_filament_mm: Option<f64>,
+    /// poa's print-time estimate (trapezoidal motion model, the file's limits), s.
+    pub estimated_time_s: f64,
+    /// The slicer's own normal-mode estimate from the footer, when it wrote one, s.
+    pub stated_time_s: Option<f64>,
     pub roles: Vec<RoleStats>,
     pub objects: Vec<String>,
     pub lines: u64,
@@ -65,18 +69,28 @@ pub struct InfoReport {
     pub diagnostics: Vec<DiagnosticEntry>,
 }
 
+/// The slicer's normal-mode print-time estimate from the file's statistics, s.
+pub fn stated_time(config: &SlicerConfig) -> Option<f64> {
+    config
+        .get("estimated_printing_time")
+        .and_then(crate::estimate::parse_dhms)
+}
+
 /// Reads a whole file through the pipeline and summarises it.
 pub fn info<R: BufRead>(input: R, config: SlicerConfig, file: &str) -> std::io::Result<InfoReport> {
     let diameter = config.filament_diameter();
     let density = config.filament_density();
     let relative_cfg = config.relative_e();
+    let limits = crate::estimate::Limits::from_config(&config);
+    let stated_time = stated_time(&config);
     let mut reader = LayerReader::new(
         input,
         ReaderOptions {
             keep_raw: false,
             config,
         },
-    );
+    )
+    .with_estimate(limits);
     let mut roles: BTreeMap<Role, RoleStats> = BTreeMap::new();
     let mut layers = 0usize;
     let (mut first_z, mut last_z) = (None, None);
@@ -128,6 +142,8 @@ pub fn info<R: BufRead>(input: R, config: SlicerConfig, file: &str) -> std::io::
         filament_cm3: cm3,
         filament_g: cm3 * density,
         stated_filament_mm: facts.stated_filament_mm,
+        estimated_time_s: reader.estimated_time().unwrap_or(0.0),
+        stated_time_s: stated_time,
         roles: roles.into_values().collect(),
         objects: reader.objects().to_vec(),
         lines: facts.lines,
@@ -179,6 +195,15 @@ impl fmt::Display for InfoReport {
                 self.filament_all_mm - self.filament_mm
             )?;
         }
+        write!(
+            f,
+            "  print time  {} (estimate)",
+            crate::estimate::format_dhms(self.estimated_time_s)
+        )?;
+        if let Some(s) = self.stated_time_s {
+            write!(f, "; the slicer says {}", crate::estimate::format_dhms(s))?;
+        }
+        writeln!(f)?;
         writeln!(f, "  {} lines, {} bytes", self.lines, self.bytes)?;
         if !self.roles.is_empty() {
             writeln!(f)?;

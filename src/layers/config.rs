@@ -43,6 +43,14 @@ impl SlicerConfig {
                 let k = k.trim();
                 if !k.is_empty() && k.bytes().all(|b| b.is_ascii_alphanumeric() || b == b'_') {
                     self.values.insert(k.to_string(), v.trim().to_string());
+                } else if let Some(mode) = k.strip_prefix("estimated printing time") {
+                    // The statistics footer: `; estimated printing time (normal mode) = 35m 49s`.
+                    let key = if mode.contains("silent") {
+                        "estimated_printing_time_silent"
+                    } else {
+                        "estimated_printing_time"
+                    };
+                    self.values.insert(key.to_string(), v.trim().to_string());
                 }
             } else if let Some((k, v)) = rest.split_once(',') {
                 // Simplify3D: `;   filamentDiameters,1.75`
@@ -55,6 +63,13 @@ impl SlicerConfig {
                     _ => continue,
                 };
                 self.values.insert(key.to_string(), v.trim().to_string());
+            } else if let Some(v) = rest.strip_prefix("TIME:").filter(|v| v.trim() != "6666") {
+                // Cura's header: `;TIME:1604` (seconds). CuraEngine run on its own leaves the
+                // placeholder 6666 that Cura's front end fills in.
+                self.values.insert(
+                    "estimated_printing_time".to_string(),
+                    format!("{}s", v.trim()),
+                );
             } else if let Some(v) = rest.strip_prefix("Layer height:") {
                 self.values
                     .insert("layer_height".to_string(), v.trim().to_string());
