@@ -873,6 +873,12 @@ pub struct ProcessReport {
     pub filament_added_g: f64,
     pub time_added_s: f64,
     pub layers: usize,
+    /// Where in the output time was added, for the progress lines.
+    #[serde(skip)]
+    pub progress: Vec<crate::progress::Added>,
+    /// Whether the file has `M73` progress lines.
+    #[serde(skip)]
+    pub has_progress_lines: bool,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -938,6 +944,9 @@ pub fn process<R: BufRead + Send, W: Write>(
     let loop_width = config.external_perimeter_width();
     let filament_area = motion.filament_area;
     let density = config.filament_density();
+    // The motion limits in force where each layer starts (the file changes them with M20x
+    // lines), for the time a rewrite adds.
+    let mut limits = crate::estimate::Estimator::new(crate::estimate::Limits::from_config(&config));
     let mut reader = crate::layers::LayerReader::new(
         input,
         crate::layers::ReaderOptions {
@@ -946,6 +955,7 @@ pub fn process<R: BufRead + Send, W: Write>(
         },
     );
     let mut report = ProcessReport::default();
+    let mut emitted = 0u64;
     let mut header_written = false;
     let mut held: Option<Vec<u8>> = None;
     let mut next_id = 0usize;
@@ -1021,7 +1031,23 @@ pub fn process<R: BufRead + Send, W: Write>(
         let bytes = if rewrites.is_empty() {
             std::borrow::Cow::Borrowed(&layer.raw)
         } else {
-            let (bytes, stats) = rewrite_layer(&layer, &rewrites, &motion, &opts.settings);
+            let (bytes, mut stats) = rewrite_layer(&layer, &rewrites, &motion, &opts.settings);
+            let added =
+                layer_time(&limits, &layer, &bytes) - layer_time(&limits, &layer, &layer.raw);
+            // The planner's time for the layer, shared out like the simple model's estimates.
+            let simple: f64 = stats.iter().map(|s| s.time_added_s.max(0.0)).sum();
+            let n = stats.len().max(1) as f64;
+            for s in &mut stats {
+                s.time_added_s = if simple > 0.0 {
+                    added * s.time_added_s.max(0.0) / simple
+                } else {
+                    added / n
+                };
+            }
+            report.progress.push(crate::progress::Added {
+                offset: 0,
+                seconds: added,
+            });
             for s in stats {
                 report.regions_rewritten += 1;
                 report.loops += s.loops;
@@ -1050,6 +1076,12 @@ pub fn process<R: BufRead + Send, W: Write>(
         } else {
             bytes.into_owned()
         };
+        track_limits(&mut limits, &layer.raw);
+        report.has_progress_lines |= has_progress_line(&block);
+        emitted += block.len() as u64;
+        if let Some(last) = report.progress.last_mut().filter(|a| a.offset == 0) {
+            last.offset = emitted;
+        }
         // One block is held back: the slicer's statistics footer is in the last one.
         if let Some(prev) = held.replace(block) {
             output.write_all(&prev)?;
@@ -1073,6 +1105,34 @@ pub fn process<R: BufRead + Send, W: Write>(
     }
     report.slicer = reader.facts().slicer.name().to_string();
     Ok(report)
+}
+
+/// Print time of `text` (a layer's lines) from the machine state where `layer` starts, with
+/// the limits in force there.
+fn layer_time(limits: &crate::estimate::Estimator, layer: &Layer, text: &[u8]) -> f64 {
+    let mut est = limits.fresh();
+    let mut machine = layer.start.as_deref().cloned().unwrap_or_default();
+    crate::estimate::feed_text(&mut est, &mut machine, text, layer.first_line);
+    est.finish().0
+}
+
+/// Feeds the limit-setting lines (M201, M203, M204, M205, M220) of `raw` to `limits`.
+fn track_limits(limits: &mut crate::estimate::Estimator, raw: &[u8]) {
+    let starts = std::iter::once(0).chain(memchr::memmem::find_iter(raw, b"\nM2").map(|i| i + 1));
+    for at in starts {
+        let rest = &raw[at..];
+        if !(rest.starts_with(b"M20") || rest.starts_with(b"M220")) {
+            continue;
+        }
+        let end = memchr::memchr(b'\n', rest).map_or(rest.len(), |i| i + 1);
+        let parsed = crate::gcode::parse_line(strip_terminator(&rest[..end]));
+        limits.line(&parsed, &crate::machine::Action::None);
+    }
+}
+
+/// Whether `block` holds an `M73` line.
+fn has_progress_line(block: &[u8]) -> bool {
+    block.starts_with(b"M73") || memchr::memmem::find(block, b"\nM73").is_some()
 }
 
 /// Updates the statistics a binary G-code file states in its metadata blocks (`key=value`

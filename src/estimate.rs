@@ -614,6 +614,16 @@ impl Estimator {
         }
     }
 
+    /// An estimator with the limits and accelerations in force now and nothing planned.
+    pub fn fresh(&self) -> Estimator {
+        let mut e = Estimator::new(self.limits.clone());
+        e.acceleration = self.acceleration;
+        e.retract_acceleration = self.retract_acceleration;
+        e.travel_acceleration = self.travel_acceleration;
+        e.feed_multiply = self.feed_multiply;
+        e
+    }
+
     /// Plans and commits everything queued (what firmware does on a synchronising command).
     pub fn flush(&mut self) {
         self.plan(0);

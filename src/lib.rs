@@ -19,6 +19,7 @@ pub mod machine;
 pub mod output;
 pub mod poa;
 pub mod preview;
+pub mod progress;
 pub mod report;
 pub mod settings;
 

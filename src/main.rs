@@ -201,6 +201,10 @@ struct RewriteArgs {
     /// Print what happened to each region.
     #[arg(short, long)]
     verbose: bool,
+    /// Leave the slicer's M73 progress lines as they are (by default their remaining times
+    /// and percentages are recomputed for the time the rewrite adds).
+    #[arg(long)]
+    keep_progress: bool,
     #[command(flatten)]
     detect: DetectArgs,
 }
@@ -572,6 +576,15 @@ fn write_file(path: &std::path::Path, text: &str) -> anyhow::Result<()> {
     Ok(())
 }
 
+fn parse_time(text: Option<&str>) -> Option<f64> {
+    text.and_then(printonair::estimate::parse_dhms)
+}
+
+/// Whether the rewrite added time before progress lines that should show it.
+fn needs_progress_update(report: &ProcessReport, args: &RewriteArgs) -> bool {
+    !args.keep_progress && report.has_progress_lines && !report.progress.is_empty()
+}
+
 /// Rewrites one file into `dest` (which may be the file itself). Returns `None` when the file
 /// was already rewritten by poa and is left as it is.
 fn rewrite_file(
@@ -585,17 +598,28 @@ fn rewrite_file(
         return Ok(None);
     }
     let opts = args.options(&opened.config)?;
+    let totals = printonair::progress::Totals {
+        normal: parse_time(opened.config.get("estimated_printing_time")),
+        silent: parse_time(opened.config.get("estimated_printing_time_silent")),
+    };
     let reader = Progress::new(opened.reader, opened.size, progress);
     let read_err = |source| printonair::Error::Read {
         path: file.to_path_buf(),
         source,
     };
-    let report = match (dest, opened.binary) {
+    let opened_binary = opened.binary;
+    let report = match (dest, opened_binary.clone()) {
         (Some(dest), Some(binary)) => {
             // Binary G-code: rewrite the text in memory, then encode it as the input was.
             let mut text = Vec::new();
             let report =
                 emit::process(reader, opened.config, &opts, &mut text).map_err(read_err)?;
+            if needs_progress_update(&report, args) {
+                let mut fixed = Vec::with_capacity(text.len());
+                printonair::progress::update(&text[..], &mut fixed, &report.progress, totals)
+                    .map_err(read_err)?;
+                text = fixed;
+            }
             let mut updated = printonair::bgcode::with_gcode(&binary, &text);
             emit::update_binary_metadata(&mut updated, &report);
             let bytes = printonair::bgcode::encode(&updated);
@@ -626,6 +650,28 @@ fn rewrite_file(
             emit::process(reader, opened.config, &opts, &mut std::io::sink()).map_err(read_err)?
         }
     };
+    if let (Some(dest), None) = (dest, &opened_binary) {
+        if needs_progress_update(&report, args) {
+            // The file is complete and valid already; a second atomic replace gives its
+            // progress lines the new times (they precede the layers that added them).
+            let written = std::fs::File::open(dest).map_err(|source| printonair::Error::Read {
+                path: dest.to_path_buf(),
+                source,
+            })?;
+            output::write_atomic(dest, |w| {
+                printonair::progress::update(
+                    std::io::BufReader::with_capacity(input::READ_BUFFER, written),
+                    w,
+                    &report.progress,
+                    totals,
+                )
+                .map_err(|source| printonair::Error::Write {
+                    path: dest.to_path_buf(),
+                    source,
+                })
+            })?;
+        }
+    }
     if args.verbose {
         let mut t = String::new();
         for s in &report.rewrites {

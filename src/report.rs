@@ -504,6 +504,8 @@ pub struct CheckReport {
     /// Layer number, [x, y] and line of the longest in-air run.
     pub longest_in_air_at: Option<(usize, [f64; 2], u64)>,
     pub filament_mm: f64,
+    /// Print-time estimate (trapezoidal motion model), s.
+    pub time_s: f64,
     pub layers: Vec<LayerCheck>,
 }
 
@@ -515,13 +517,15 @@ pub fn check<R: BufRead + Send>(
     file: &str,
 ) -> std::io::Result<CheckReport> {
     let fa = filament_area(config.filament_diameter());
-    let reader = LayerReader::new(
+    let limits = crate::estimate::Limits::from_config(&config);
+    let mut reader = LayerReader::new(
         input,
         ReaderOptions {
             keep_raw: false,
             config,
         },
-    );
+    )
+    .with_estimate(limits);
     let mut rep = CheckReport {
         file: file.to_string(),
         options: opts.clone(),
@@ -532,12 +536,13 @@ pub fn check<R: BufRead + Send>(
         longest_in_air_mm: 0.0,
         longest_in_air_at: None,
         filament_mm: 0.0,
+        time_s: 0.0,
         layers: Vec::new(),
     };
     // Layers are checked in parallel batches; each needs the layer before it, so the last
     // layer of a batch is carried into the next.
     const BATCH: usize = 8;
-    let checks = geometry::read_ahead(reader, |layers| {
+    let checks = geometry::read_ahead(reader.by_ref(), |layers| {
         let mut checks: Vec<LayerCheck> = Vec::new();
         let mut batch: Vec<crate::layers::Layer> = Vec::with_capacity(BATCH + 1);
         let mut carried = false;
@@ -571,6 +576,7 @@ pub fn check<R: BufRead + Send>(
             carried = !batch.is_empty();
         }
     })?;
+    rep.time_s = reader.estimated_time().unwrap_or(0.0);
     for c in checks {
         rep.length_mm += c.length_mm;
         rep.supported_mm += c.supported_mm;
@@ -649,6 +655,8 @@ pub struct CompareReport {
     pub file: CheckReport,
     /// Filament the second file uses beyond the first (mm).
     pub filament_added_mm: f64,
+    /// Print time the second file takes beyond the first (s, same estimator).
+    pub time_added_s: f64,
     /// Layers whose extrusion differs: (layer, Z, before, after).
     pub changed: Vec<(usize, f64, LayerSummary, LayerSummary)>,
 }
@@ -689,6 +697,7 @@ pub fn compare(original: CheckReport, file: CheckReport) -> CompareReport {
     }
     CompareReport {
         filament_added_mm: file.filament_mm - original.filament_mm,
+        time_added_s: file.time_s - original.time_s,
         original,
         file,
         changed,
@@ -723,6 +732,13 @@ impl fmt::Display for CompareReport {
         writeln!(f, "{}", line(&self.original))?;
         writeln!(f, "{}", line(&self.file))?;
         writeln!(f, "filament added: {:+.1} mm", self.filament_added_mm)?;
+        writeln!(
+            f,
+            "time added: {:+.0} s ({} -> {})",
+            self.time_added_s,
+            crate::estimate::format_dhms(self.original.time_s),
+            crate::estimate::format_dhms(self.file.time_s)
+        )?;
         if self.changed.is_empty() {
             writeln!(f, "no layer differs")?;
             return Ok(());

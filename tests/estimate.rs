@@ -62,3 +62,97 @@ fn estimate_follows_other_flavors_and_limit_settings() {
         assert!(err.abs() < 0.05, "{args:?}: {t} vs {expected}");
     }
 }
+
+fn poa() -> std::process::Command {
+    std::process::Command::new(env!("CARGO_BIN_EXE_poa"))
+}
+
+fn progress_lines(text: &str) -> Vec<(f64, f64)> {
+    text.lines()
+        .filter_map(|l| l.strip_prefix("M73 P"))
+        .filter_map(|rest| {
+            let (p, r) = rest.split_once(" R")?;
+            Some((p.parse().ok()?, r.split_whitespace().next()?.parse().ok()?))
+        })
+        .collect()
+}
+
+/// What `--report` says a rewrite added is what `check --compare` measures between the files,
+/// and the progress lines count down the new total.
+#[test]
+fn report_compare_and_progress_lines_agree() {
+    for name in ["rect_overhang", "circ_overhang", "tri_overhang"] {
+        let dir = tempfile::tempdir().unwrap();
+        let original = common::sample(&format!("{name}_prusa_rel.gcode"));
+        let file = dir.path().join("part.gcode");
+        let report = dir.path().join("report.json");
+        let o = poa()
+            .arg("process")
+            .arg(&original)
+            .arg("-o")
+            .arg(&file)
+            .arg("--report")
+            .arg(&report)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let r: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+        let o = poa()
+            .args(["check", "--json", "--compare"])
+            .arg(&original)
+            .arg(&file)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let c: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        let files = &r["files"][0]["report"];
+        let (rt, ct) = (
+            files["time_added_s"].as_f64().unwrap(),
+            c["time_added_s"].as_f64().unwrap(),
+        );
+        let (rf, cf) = (
+            files["filament_added_mm"].as_f64().unwrap(),
+            c["filament_added_mm"].as_f64().unwrap(),
+        );
+        eprintln!("{name}: time {rt:.1} / {ct:.1} s, filament {rf:.2} / {cf:.2} mm");
+        assert!(
+            rt > 0.0 && (rt - ct).abs() <= 0.05 * ct.abs() + 1.0,
+            "{name}: {rt} vs {ct}"
+        );
+        assert!((rf - cf).abs() < 0.05, "{name}: {rf} vs {cf}");
+
+        // Progress lines: same count, counting down the new total.
+        let before = std::fs::read_to_string(&original).unwrap();
+        let after = std::fs::read_to_string(&file).unwrap();
+        let (p0, p1) = (progress_lines(&before), progress_lines(&after));
+        assert_eq!(p0.len(), p1.len());
+        let total = after
+            .lines()
+            .find_map(|l| l.strip_prefix("; estimated printing time (normal mode) = "))
+            .and_then(parse_dhms)
+            .unwrap();
+        assert_eq!(p1[0], (0.0, (total / 60.0).floor()), "{name}");
+        assert!(
+            p1.windows(2).all(|w| w[1].0 >= w[0].0 && w[1].1 <= w[0].1),
+            "{name}"
+        );
+        assert_eq!(p1.last(), Some(&(100.0, 0.0)));
+
+        // --keep-progress leaves them as the slicer wrote them; nothing else differs.
+        // (Slicer mode, in place, like PrusaSlicer runs it.)
+        let kept = dir.path().join("kept.gcode");
+        std::fs::copy(&original, &kept).unwrap();
+        let o = poa().arg("--keep-progress").arg(&kept).output().unwrap();
+        assert!(o.status.success());
+        let kept = std::fs::read_to_string(&kept).unwrap();
+        assert_eq!(progress_lines(&kept), p0);
+        let strip = |t: &str| -> Vec<String> {
+            t.lines()
+                .filter(|l| !l.starts_with("M73"))
+                .map(String::from)
+                .collect()
+        };
+        assert_eq!(strip(&kept), strip(&after));
+    }
+}

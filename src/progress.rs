@@ -1,0 +1,232 @@
+//! Progress lines (`M73`) after a rewrite.
+//!
+//! Input: a rewritten G-code text, where in it (byte offsets) the rewrite added time and how
+//! much, and the slicer's total estimates. Output: the same text with the numbers of every
+//! `M73 P.. R..` (normal mode) and `M73 Q.. S..` (silent mode) line recomputed, so that the
+//! printer's display counts down the new total. Every other byte, the M73 lines' own comments
+//! and other words included, is copied unchanged; the file keeps its line count.
+//!
+//! Why a pass of its own: a time added late in the file changes the remaining time shown at
+//! every earlier progress line, which was already written when the addition was found.
+
+use std::io::{self, BufRead, Write};
+
+use crate::gcode::{parse_line, strip_terminator, Command, LineReader};
+
+/// Time a rewrite added, counted from a byte offset of the output on.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Added {
+    /// Output offset where the rewritten layer ends.
+    pub offset: u64,
+    pub seconds: f64,
+}
+
+/// The slicer's original totals (s), which the progress lines were computed from.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Totals {
+    pub normal: Option<f64>,
+    pub silent: Option<f64>,
+}
+
+/// Rewrites the `M73` lines of `input` into `output` for the time in `added` (sorted by
+/// offset). Returns how many lines changed.
+pub fn update<R: BufRead, W: Write>(
+    input: R,
+    output: &mut W,
+    added: &[Added],
+    totals: Totals,
+) -> io::Result<usize> {
+    let total_added: f64 = added.iter().map(|a| a.seconds).sum();
+    let mut lines = LineReader::new(input);
+    let mut buf = Vec::new();
+    let mut offset = 0u64;
+    let mut next = 0usize;
+    let mut before = 0.0;
+    let mut changed = 0usize;
+    // Totals from the first progress line when the footer gave none.
+    let mut totals = totals;
+    let mut last = [0.0; 2];
+    while lines.read_into(&mut buf)?.is_some() {
+        while next < added.len() && added[next].offset <= offset {
+            before += added[next].seconds;
+            next += 1;
+        }
+        offset += buf.len() as u64;
+        if !buf.starts_with(b"M73") {
+            output.write_all(&buf)?;
+            continue;
+        }
+        match progress_line(&buf, before, total_added, &mut totals, &mut last) {
+            Some(line) if line != buf => {
+                changed += 1;
+                output.write_all(&line)?;
+            }
+            _ => output.write_all(&buf)?,
+        }
+    }
+    Ok(changed)
+}
+
+/// The line with new P/R (or Q/S) values; `None` when it is not a progress line.
+/// `last` holds the normal and silent percentages of the previous line: a display never
+/// counts backwards.
+fn progress_line(
+    raw: &[u8],
+    before: f64,
+    total_added: f64,
+    totals: &mut Totals,
+    last: &mut [f64; 2],
+) -> Option<Vec<u8>> {
+    let content = strip_terminator(raw);
+    let parsed = parse_line(content);
+    if !matches!(parsed.command, Command::Code { letter: b'M', number } if number == 73.0) {
+        return None;
+    }
+    let after = (total_added - before).max(0.0);
+    // Without totals from the footer, the first line (0 % done) states them.
+    if parsed.get(b'P') == Some(0.0) && totals.normal.is_none() {
+        totals.normal = parsed.get(b'R').map(|r| r * 60.0);
+    }
+    if parsed.get(b'Q') == Some(0.0) && totals.silent.is_none() {
+        totals.silent = parsed.get(b'S').map(|s| s * 60.0);
+    }
+    // Silent-mode lines count slower: the added time scales like their total.
+    let silent_scale = match (totals.normal, totals.silent) {
+        (Some(n), Some(s)) if n > 0.0 => s / n,
+        _ => 1.0,
+    };
+    let mut values: Vec<(u8, f64)> = parsed.words.iter().map(|w| (w.letter, w.value)).collect();
+    for (pct, rem, scale) in [(b'P', b'R', 1.0), (b'Q', b'S', silent_scale)] {
+        let total = if pct == b'P' {
+            &mut totals.normal
+        } else {
+            &mut totals.silent
+        };
+        let p = values.iter().position(|w| w.0 == pct);
+        let r = values.iter().position(|w| w.0 == rem);
+        let (Some(p), Some(r)) = (p, r) else {
+            continue;
+        };
+        let (p_old, r_old) = (values[p].1, values[r].1);
+        if !(p_old.is_finite() && r_old.is_finite()) {
+            continue;
+        }
+        // The slicer truncates the remaining minutes: the time lies in [R, R + 1) minutes.
+        values[r].1 = ((r_old * 60.0 + 30.0 + after * scale) / 60.0).floor();
+        if let Some(t) = *total {
+            let new_total = t + total_added * scale;
+            if new_total > 0.0 && p_old < 100.0 {
+                // Where the line stood in the original: the percentage and the rounded
+                // minutes each bound the elapsed time; the middle of both bounds is closest.
+                let lo = (p_old / 100.0 * t).max(t - (r_old + 1.0) * 60.0);
+                let hi = ((p_old + 1.0) / 100.0 * t).min(t - r_old * 60.0);
+                let elapsed = if lo <= hi {
+                    (lo + hi) / 2.0
+                } else {
+                    p_old / 100.0 * t
+                };
+                let elapsed = elapsed.max(0.0) + before * scale;
+                let last = if pct == b'P' {
+                    &mut last[0]
+                } else {
+                    &mut last[1]
+                };
+                values[p].1 = (100.0 * elapsed / new_total).floor().clamp(*last, 99.0);
+                *last = values[p].1;
+            }
+        }
+    }
+    let mut line = b"M73".to_vec();
+    for (letter, v) in values {
+        line.push(b' ');
+        line.push(letter);
+        if v.fract() == 0.0 && v.abs() < 1e15 {
+            line.extend_from_slice(format!("{}", v as i64).as_bytes());
+        } else {
+            line.extend_from_slice(format!("{v:.2}").as_bytes());
+        }
+    }
+    // Whatever followed the words (a comment) and the line ending stay as they were.
+    let words_end = content
+        .iter()
+        .position(|&b| b == b';' || b == b'(')
+        .unwrap_or(content.len());
+    let tail = &content[words_end..];
+    if !tail.is_empty() {
+        // Keep the spacing before the comment.
+        let body = &content[..words_end];
+        let trailing = body.len() - body.trim_ascii_end().len();
+        line.extend_from_slice(&body[body.len() - trailing..]);
+        line.extend_from_slice(tail);
+    }
+    line.extend_from_slice(&raw[content.len()..]);
+    Some(line)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn run(text: &str, added: &[Added], totals: Totals) -> String {
+        let mut out = Vec::new();
+        update(text.as_bytes(), &mut out, added, totals).unwrap();
+        String::from_utf8(out).unwrap()
+    }
+
+    #[test]
+    fn lines_before_an_addition_show_more_remaining_time() {
+        // A 10-minute print; 120 s added by a layer ending at the offset of the third line.
+        let text = "M73 P0 R10\nG1 X1\nM73 P50 R5 ; half\r\nG1 X2\nM73 P90 R1\nM73 P100 R0\n";
+        let offset = "M73 P0 R10\nG1 X1\n".len() as u64;
+        let added = [Added {
+            offset,
+            seconds: 120.0,
+        }];
+        let out = run(
+            text,
+            &added,
+            Totals {
+                normal: Some(600.0),
+                silent: None,
+            },
+        );
+        let lines: Vec<&str> = out.split_inclusive('\n').collect();
+        assert_eq!(lines[0], "M73 P0 R12\n");
+        assert_eq!(lines[1], "G1 X1\n");
+        // After the addition: 5 of 10 minutes done becomes 7 of 12 (58 %), 5 remain; the
+        // comment and the CRLF ending stay.
+        assert_eq!(lines[2], "M73 P58 R5 ; half\r\n");
+        assert_eq!(lines[4], "M73 P91 R1\n");
+        assert_eq!(lines[5], "M73 P100 R0\n");
+        assert_eq!(out.len(), text.len(), "only digits change here");
+    }
+
+    #[test]
+    fn silent_mode_lines_scale_and_totals_come_from_the_first_line() {
+        let text = "M73 P0 R10\nM73 Q0 S20\nG1 X1\nM73 Q50 S10\n";
+        let added = [Added {
+            offset: text.len() as u64,
+            seconds: 60.0,
+        }];
+        let out = run(text, &added, Totals::default());
+        // Silent totals run twice as long as normal ones: 60 s becomes 2 minutes.
+        assert!(out.starts_with("M73 P0 R11\nM73 Q0 S22\n"), "{out}");
+        assert!(out.ends_with("M73 Q45 S12\n"), "{out}");
+    }
+
+    #[test]
+    fn nothing_added_changes_nothing() {
+        let text = "M73 P0 R10\nM73 P50 R5\nM104 S200\nM73 P100 R0\n";
+        assert_eq!(
+            run(
+                text,
+                &[],
+                Totals {
+                    normal: Some(600.0),
+                    silent: None
+                }
+            ),
+            text
+        );
+    }
+}
