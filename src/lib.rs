@@ -6,6 +6,7 @@
 //! [`preview`] (what a user reads and sees). The binary `poa` only parses
 //! arguments, does file I/O and maps errors to exit codes.
 
+pub mod ab;
 pub mod bgcode;
 pub mod check;
 pub mod emit;

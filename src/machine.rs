@@ -283,6 +283,13 @@ impl Machine {
 
     /// A copy of the modal state without the diagnostics gathered so far: what a later stage
     /// needs to re-interpret a stretch of lines from here.
+    /// Moves the machine's idea of its position by `d` in X and Y (a translated copy of the
+    /// same moves ends there).
+    pub fn shift_xy(&mut self, d: [f64; 2]) {
+        self.pos[0] += d[0];
+        self.pos[1] += d[1];
+    }
+
     pub fn snapshot(&self) -> Machine {
         Machine {
             diagnostics: Diagnostics::default(),

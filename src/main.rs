@@ -67,6 +67,25 @@ enum Command {
         #[command(flatten)]
         rewrite: RewriteArgs,
     },
+    /// A/B test plate: the part as sliced plus a copy shifted by DX,DY with Print-on-Air
+    /// applied to the copy only, both printed in every layer, each its own object.
+    Ab {
+        file: PathBuf,
+        /// Output file.
+        #[arg(short, long, value_name = "OUT")]
+        output: PathBuf,
+        /// Shift of the copy in mm, e.g. --offset 60,0.
+        #[arg(long, value_name = "DX,DY", allow_hyphen_values = true)]
+        offset: String,
+        /// Least distance between the copy and the original's material, mm.
+        #[arg(long, value_name = "MM", default_value_t = 5.0)]
+        gap: f64,
+        /// Bed rectangle X0,Y0,X1,Y1 in mm, when the file does not state its bed shape.
+        #[arg(long, value_name = "X0,Y0,X1,Y1", allow_hyphen_values = true)]
+        bed: Option<String>,
+        #[command(flatten)]
+        rewrite: RewriteArgs,
+    },
     /// Convert binary G-code (.bgcode) to text G-code.
     Convert {
         /// A .bgcode file (recognised by its content, whatever its name).
@@ -370,6 +389,14 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             emit(&rep, json)?;
             Ok(ExitCode::SUCCESS)
         }
+        Command::Ab {
+            file,
+            output: out,
+            offset,
+            gap,
+            bed,
+            rewrite,
+        } => ab_command(&file, &out, &offset, gap, bed.as_deref(), &rewrite),
         Command::Convert { input, output: out } => {
             let data = std::fs::read(&input).map_err(|source| printonair::Error::Read {
                 path: input.clone(),
@@ -574,6 +601,141 @@ fn write_file(path: &std::path::Path, text: &str) -> anyhow::Result<()> {
         source,
     })?;
     Ok(())
+}
+
+/// Numbers separated by commas, exactly `n` of them.
+fn parse_numbers(text: &str, n: usize, what: &str) -> anyhow::Result<Vec<f64>> {
+    let v: Vec<f64> = text
+        .split(',')
+        .map(|x| x.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .ok()
+        .filter(|v: &Vec<f64>| v.len() == n && v.iter().all(|x| x.is_finite()))
+        .ok_or_else(|| {
+            anyhow::anyhow!("{what} takes {n} numbers separated by commas, got `{text}`")
+        })?;
+    Ok(v)
+}
+
+fn ab_command(
+    file: &std::path::Path,
+    out: &std::path::Path,
+    offset: &str,
+    gap: f64,
+    bed: Option<&str>,
+    args: &RewriteArgs,
+) -> anyhow::Result<ExitCode> {
+    use std::io::Read;
+    let d = parse_numbers(offset, 2, "--offset")?;
+    let bed = bed
+        .map(|b| parse_numbers(b, 4, "--bed").map(|v| [v[0], v[1], v[2], v[3]]))
+        .transpose()?;
+    let mut opened = input::open(file)?;
+    if emit::already_processed(&opened.head) {
+        anyhow::bail!(
+            "{} was already rewritten by poa; make the A/B plate from the slicer's original",
+            file.display()
+        );
+    }
+    let mut text = Vec::new();
+    opened
+        .reader
+        .read_to_end(&mut text)
+        .map_err(|source| printonair::Error::Read {
+            path: file.to_path_buf(),
+            source,
+        })?;
+    let plate = printonair::ab::build(
+        &text,
+        &opened.config,
+        &printonair::ab::AbOptions {
+            offset: [d[0], d[1]],
+            gap,
+            bed,
+        },
+    )
+    .map_err(|e| anyhow::anyhow!("cannot make an A/B plate of {}: {e}", file.display()))?;
+    let mut opts = args.options(&opened.config)?;
+    opts.objects = emit::ObjectFilter::from_globs(std::slice::from_ref(&plate.copy_name), &[])
+        .map_err(|e| anyhow::anyhow!(e))?;
+    let read_err = |source| printonair::Error::Read {
+        path: file.to_path_buf(),
+        source,
+    };
+    // The statistics and progress lines count the copy too.
+    let totals = printonair::progress::Totals {
+        normal: parse_time(opened.config.get("estimated_printing_time")),
+        silent: parse_time(opened.config.get("estimated_printing_time_silent")),
+    };
+    let mut text = Vec::with_capacity(plate.text.len());
+    printonair::progress::update(&plate.text[..], &mut text, &plate.added, totals)
+        .map_err(read_err)?;
+    let footer = footer_start(&text);
+    let fa = printonair::layers::filament_area(opened.config.filament_diameter());
+    let tail = emit::update_footer(
+        &text[footer..],
+        plate.added_filament_mm,
+        plate.added_time_s,
+        fa,
+        opened.config.filament_density(),
+    );
+    text.truncate(footer);
+    text.extend_from_slice(&tail);
+    let scale = match (totals.normal, totals.silent) {
+        (Some(n), Some(s)) if n > 0.0 => s / n,
+        _ => 1.0,
+    };
+    let totals = printonair::progress::Totals {
+        normal: totals.normal.map(|t| t + plate.added_time_s),
+        silent: totals.silent.map(|t| t + plate.added_time_s * scale),
+    };
+    let mut result = Vec::new();
+    let report = emit::process(&text[..], opened.config, &opts, &mut result).map_err(read_err)?;
+    if needs_progress_update(&report, args) {
+        let mut fixed = Vec::with_capacity(result.len());
+        printonair::progress::update(&result[..], &mut fixed, &report.progress, totals)
+            .map_err(read_err)?;
+        result = fixed;
+    }
+    let bytes = match &opened.binary {
+        Some(binary) => {
+            let mut updated = printonair::bgcode::with_gcode(binary, &result);
+            emit::update_binary_metadata(&mut updated, &report);
+            printonair::bgcode::encode(&updated)
+        }
+        None => result,
+    };
+    output::write_atomic(out, |w| {
+        use std::io::Write;
+        w.write_all(&bytes)
+            .map_err(|source| printonair::Error::Write {
+                path: out.to_path_buf(),
+                source,
+            })
+    })?;
+    write_stdout(&format!(
+        "{}: A/B plate with the copy `{}` shifted by {},{} mm on {} layers; {} region(s) of the copy rewritten with {} loops\n",
+        out.display(),
+        plate.copy_name,
+        d[0],
+        d[1],
+        plate.layers,
+        report.regions_rewritten,
+        report.loops
+    ))?;
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Start of the line where the last 64 KiB of `text` begin: the statistics footer lies there.
+fn footer_start(text: &[u8]) -> usize {
+    let from = text.len().saturating_sub(64 * 1024);
+    if from == 0 {
+        return 0;
+    }
+    text[from..]
+        .iter()
+        .position(|&b| b == b'\n')
+        .map_or(text.len(), |i| from + i + 1)
 }
 
 fn parse_time(text: Option<&str>) -> Option<f64> {

@@ -1,0 +1,848 @@
+//! A/B test plates: the original part and a translated copy, printed layer by layer.
+//!
+//! Input: the text of a single-part slice, its [`SlicerConfig`] and an offset. Output: G-code
+//! that prints, in every layer, the original layer's lines unchanged, then a clean travel
+//! (retract, lift, move, lower, unretract) to the copy, the copy's lines with X/Y shifted by
+//! the offset, and a clean travel back before the rest of the original layer (the slicer's
+//! layer change and, after the last layer, its end G-code). The copy is labelled as its own
+//! object in the input's labelling style (PrusaSlicer comments, M486, Klipper
+//! EXCLUDE_OBJECT), so that [`crate::emit::process`] can rewrite it alone and the printer can
+//! cancel either.
+//!
+//! Invariants: refuses, without output, a copy that would leave the bed or come within the
+//! safety gap of the original's material (every extrusion, skirt and priming line included),
+//! and files whose coordinates the shift cannot follow (relative XY moves, G92 on X/Y).
+
+use std::fmt::Write as _;
+
+use crate::gcode::{parse_line, split_lines, strip_terminator, Command};
+use crate::layers::{LayerKind, LayerReader, ReaderOptions, SlicerConfig};
+use crate::machine::{Action, Machine};
+
+/// How to lay out the copy.
+#[derive(Debug, Clone)]
+pub struct AbOptions {
+    /// Shift of the copy (mm).
+    pub offset: [f64; 2],
+    /// Least distance between the copy's material and the original's (mm).
+    pub gap: f64,
+    /// Bed rectangle `[x0, y0, x1, y1]` overriding the file's bed shape.
+    pub bed: Option<[f64; 4]>,
+}
+
+/// What was built.
+#[derive(Debug, Clone)]
+pub struct AbPlate {
+    pub text: Vec<u8>,
+    /// The copy's object name, as the layer reader will report it.
+    pub copy_name: String,
+    pub layers: usize,
+    /// Filament (mm) and print time (s) the copy and its travels add.
+    pub added_filament_mm: f64,
+    pub added_time_s: f64,
+    /// Where in `text` each layer's copy ends and the time it took, for progress lines.
+    pub added: Vec<crate::progress::Added>,
+}
+
+/// Axis-aligned box of material (mm).
+#[derive(Debug, Clone, Copy)]
+struct Bounds {
+    min: [f64; 2],
+    max: [f64; 2],
+}
+
+impl Bounds {
+    fn empty() -> Bounds {
+        Bounds {
+            min: [f64::INFINITY; 2],
+            max: [f64::NEG_INFINITY; 2],
+        }
+    }
+
+    fn add(&mut self, p: [f64; 2], r: f64) {
+        for ((lo, hi), v) in self.min.iter_mut().zip(self.max.iter_mut()).zip(p) {
+            *lo = lo.min(v - r);
+            *hi = hi.max(v + r);
+        }
+    }
+
+    fn is_empty(&self) -> bool {
+        self.min[0] > self.max[0]
+    }
+
+    fn shifted(&self, d: [f64; 2]) -> Bounds {
+        Bounds {
+            min: [self.min[0] + d[0], self.min[1] + d[1]],
+            max: [self.max[0] + d[0], self.max[1] + d[1]],
+        }
+    }
+
+    /// Distance between two boxes (0 when they overlap).
+    fn distance(&self, o: &Bounds) -> f64 {
+        let dx = (o.min[0] - self.max[0])
+            .max(self.min[0] - o.max[0])
+            .max(0.0);
+        let dy = (o.min[1] - self.max[1])
+            .max(self.min[1] - o.max[1])
+            .max(0.0);
+        (dx * dx + dy * dy).sqrt()
+    }
+}
+
+/// The bed's outline from `bed_shape = 0x0,250x0,250x210,0x210`.
+fn bed_polygon(config: &SlicerConfig) -> Option<Vec<[f64; 2]>> {
+    let v = config.get("bed_shape")?;
+    let pts: Option<Vec<[f64; 2]>> = v
+        .split(',')
+        .map(|p| {
+            let (x, y) = p.trim().split_once('x')?;
+            Some([x.trim().parse().ok()?, y.trim().parse().ok()?])
+        })
+        .collect();
+    pts.filter(|p| p.len() >= 3)
+}
+
+fn inside_polygon(poly: &[[f64; 2]], p: [f64; 2]) -> bool {
+    // A point on the edge counts as inside: a part may touch the bed's edge.
+    let mut inside = false;
+    let n = poly.len();
+    for i in 0..n {
+        let (a, b) = (poly[i], poly[(i + 1) % n]);
+        let cross = (b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0]);
+        let on_segment = cross.abs() < 1e-9
+            && p[0] >= a[0].min(b[0]) - 1e-9
+            && p[0] <= a[0].max(b[0]) + 1e-9
+            && p[1] >= a[1].min(b[1]) - 1e-9
+            && p[1] <= a[1].max(b[1]) + 1e-9;
+        if on_segment {
+            return true;
+        }
+        if (a[1] > p[1]) != (b[1] > p[1]) {
+            let x = a[0] + (p[1] - a[1]) * (b[0] - a[0]) / (b[1] - a[1]);
+            if p[0] < x {
+                inside = !inside;
+            }
+        }
+    }
+    inside
+}
+
+/// How the input labels objects.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Labels {
+    /// `; printing object NAME id:N copy K` / `; stop printing object ...`.
+    Comments,
+    /// `M486 S<id>` (Marlin, Prusa firmware); copies take ids from `first_free` on.
+    M486 {
+        first_free: i64,
+    },
+    /// `EXCLUDE_OBJECT_START NAME=...` (Klipper).
+    Klipper,
+    None,
+}
+
+fn detect_labels(text: &[u8]) -> Labels {
+    let mut max_id: Option<i64> = None;
+    let mut comments = false;
+    let mut klipper = false;
+    for raw in split_lines(text) {
+        let t = strip_terminator(raw).trim_ascii();
+        if t.starts_with(b"; printing object ") {
+            comments = true;
+        } else if t.starts_with(b"EXCLUDE_OBJECT_START") {
+            klipper = true;
+        } else if t.starts_with(b"M486") {
+            if let Some(s) = parse_line(t).get(b'S').filter(|s| *s >= 0.0) {
+                max_id = Some(max_id.map_or(s as i64, |m: i64| m.max(s as i64)));
+            }
+        }
+    }
+    if comments {
+        Labels::Comments
+    } else if let Some(m) = max_id {
+        Labels::M486 { first_free: m + 1 }
+    } else if klipper {
+        Labels::Klipper
+    } else {
+        Labels::None
+    }
+}
+
+/// Why an A/B plate cannot be made.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Refusal(pub String);
+
+impl std::fmt::Display for Refusal {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+/// Builds the A/B plate from the text of a slice.
+pub fn build(text: &[u8], config: &SlicerConfig, opts: &AbOptions) -> Result<AbPlate, Refusal> {
+    let d = opts.offset;
+    if !(d[0].is_finite() && d[1].is_finite()) || (d[0] == 0.0 && d[1] == 0.0) {
+        return Err(Refusal("the offset must be a non-zero DX,DY in mm".into()));
+    }
+    let reader = LayerReader::new(
+        text,
+        ReaderOptions {
+            keep_raw: true,
+            config: config.clone(),
+        },
+    );
+    let mut layers = Vec::new();
+    let mut material = Bounds::empty();
+    let mut copied = Bounds::empty();
+    for l in reader {
+        let l = l.map_err(|e| Refusal(format!("cannot read the file: {e}")))?;
+        for p in &l.paths {
+            for q in &p.points {
+                material.add(*q, p.width / 2.0);
+                if l.kind == LayerKind::Layer {
+                    copied.add(*q, p.width / 2.0);
+                }
+            }
+        }
+        layers.push(l);
+    }
+    if copied.is_empty() {
+        return Err(Refusal("the file prints nothing to copy".into()));
+    }
+    let copy = copied.shifted(d);
+    let gap = copy.distance(&material);
+    if gap < opts.gap {
+        return Err(Refusal(format!(
+            "the copy would come within {gap:.1} mm of the original's material (at least {:.1} mm needed); choose a larger --offset",
+            opts.gap
+        )));
+    }
+    let bed = match (opts.bed, bed_polygon(config)) {
+        (Some(b), _) => vec![[b[0], b[1]], [b[2], b[1]], [b[2], b[3]], [b[0], b[3]]],
+        (None, Some(p)) => p,
+        (None, None) => {
+            return Err(Refusal(
+                "the file does not state its bed shape; pass --bed X0,Y0,X1,Y1".into(),
+            ))
+        }
+    };
+    let corners = [
+        copy.min,
+        [copy.max[0], copy.min[1]],
+        copy.max,
+        [copy.min[0], copy.max[1]],
+    ];
+    if let Some(c) = corners.iter().find(|c| !inside_polygon(&bed, **c)) {
+        return Err(Refusal(format!(
+            "the copy would leave the bed (its material would reach X{:.1} Y{:.1}); choose another --offset",
+            c[0], c[1]
+        )));
+    }
+
+    let labels = detect_labels(text);
+    let copy_name = copy_object_name(&layers, labels);
+    let motion = Junction::from_config(config);
+    let mut out: Vec<u8> = Vec::with_capacity(text.len() * 2);
+    let mut count = 0;
+    // The original's label open where the current layer starts (a slicer may open it in the
+    // layer before).
+    let mut open: Option<Vec<u8>> = None;
+    // Motion limits in force as the file goes (it changes accelerations per feature).
+    let mut limits = crate::estimate::Estimator::new(crate::estimate::Limits::from_config(config));
+    let (mut added_filament, mut added_time) = (0.0, 0.0);
+    let mut added = Vec::new();
+    for l in &layers {
+        let lines: Vec<&[u8]> = split_lines(&l.raw).collect();
+        let start = match (l.kind, l.start.as_deref()) {
+            (LayerKind::Layer, Some(s)) => s,
+            _ => {
+                out.extend_from_slice(&l.raw);
+                if labels == Labels::Klipper {
+                    define_klipper_copies(&l.raw, d, &mut out);
+                }
+                for raw in &lines {
+                    track_label(&mut open, raw, labels);
+                }
+                continue;
+            }
+        };
+        // The copy is the layer's lines up to its last extrusion: what follows is the next
+        // layer's preparation, or the end G-code.
+        let mut machine = start.clone();
+        let mut cut = 0;
+        let mut at_cut = machine.clone();
+        for (i, raw) in lines.iter().enumerate() {
+            let parsed = parse_line(strip_terminator(raw));
+            check_shiftable(&parsed, &machine, l.first_line + i as u64)?;
+            if let Action::Move(m) = machine.step(&parsed, l.first_line + i as u64) {
+                if m.is_extrusion() {
+                    cut = i + 1;
+                    at_cut = machine.clone();
+                }
+            }
+        }
+        let open_at_start = open.clone();
+        for raw in &lines[..cut] {
+            out.extend_from_slice(raw);
+            track_label(&mut open, raw, labels);
+        }
+        if cut == 0 {
+            for raw in &lines {
+                out.extend_from_slice(raw);
+                track_label(&mut open, raw, labels);
+            }
+            continue;
+        }
+        count += 1;
+        let nl = if l.raw.windows(2).any(|w| w == b"\r\n") {
+            "\r\n"
+        } else {
+            "\n"
+        };
+        let open_at_cut = open.clone();
+        let mut block = String::new();
+        // Travels belong to no object: a cancelled object's moves are skipped by firmware.
+        if let Some(o) = &open_at_cut {
+            block.push_str(&stop_label(o, labels, nl));
+        }
+        motion.travel(&mut block, &at_cut, start, d, nl);
+        let mut copy_open = open_at_start.clone();
+        if let Some(o) = &open_at_start {
+            block.push_str(&String::from_utf8_lossy(
+                &copy_line(o, d, labels).unwrap_or_default(),
+            ));
+            block.push_str(nl);
+        }
+        if labels == Labels::None {
+            let _ = write!(block, "; printing object {copy_name}{nl}");
+            copy_open = Some(format!("; printing object {copy_name}").into_bytes());
+        }
+        let copy_from = out.len();
+        out.extend_from_slice(block.as_bytes());
+        for raw in &lines[..cut] {
+            if let Some(line) = copy_line(raw, d, labels) {
+                out.extend_from_slice(&line);
+            }
+            track_label(&mut copy_open, raw, labels);
+        }
+        let mut back = String::new();
+        if let Some(o) = &copy_open {
+            let renamed = copy_line(o, d, labels).unwrap_or_else(|| o.clone());
+            back.push_str(&stop_label(&renamed, labels, nl));
+        }
+        let mut shifted_end = at_cut.clone();
+        shifted_end.shift_xy(d);
+        motion.travel(&mut back, &shifted_end, &at_cut, [0.0, 0.0], nl);
+        if let Some(o) = &open_at_cut {
+            back.push_str(&String::from_utf8_lossy(o));
+            back.push_str(nl);
+        }
+        out.extend_from_slice(back.as_bytes());
+        // What the copy costs: its lines and both travels, from where the original stopped.
+        let (f, t) = segment_cost(&limits, &at_cut, &out[copy_from..]);
+        added_filament += f;
+        added_time += t;
+        added.push(crate::progress::Added {
+            offset: out.len() as u64,
+            seconds: t,
+        });
+        for raw in &lines {
+            let parsed = parse_line(strip_terminator(raw));
+            limits.line(&parsed, &Action::None);
+        }
+        for raw in &lines[cut..] {
+            out.extend_from_slice(raw);
+            track_label(&mut open, raw, labels);
+        }
+    }
+    Ok(AbPlate {
+        text: out,
+        copy_name,
+        layers: count,
+        added_filament_mm: added_filament,
+        added_time_s: added_time,
+        added,
+    })
+}
+
+/// Filament pushed (mm) and print time (s) of `text` run from state `from`.
+fn segment_cost(limits: &crate::estimate::Estimator, from: &Machine, text: &[u8]) -> (f64, f64) {
+    let mut est = limits.fresh();
+    let mut machine = from.clone();
+    let mut filament = 0.0;
+    for raw in split_lines(text) {
+        let parsed = parse_line(strip_terminator(raw));
+        let action = machine.step(&parsed, 0);
+        if let Action::Move(m) = &action {
+            // Net: the travels' retractions are primed back.
+            filament += m.e;
+        }
+        est.line(&parsed, &action);
+    }
+    (filament, est.finish().0)
+}
+
+/// Follows object labels: `open` is the start line of the object being printed, if any.
+fn track_label(open: &mut Option<Vec<u8>>, raw: &[u8], labels: Labels) {
+    let t = strip_terminator(raw).trim_ascii();
+    let (starts, stops) = match labels {
+        Labels::Comments | Labels::None => (
+            t.starts_with(b"; printing object "),
+            t.starts_with(b"; stop printing object "),
+        ),
+        Labels::M486 { .. } if t.starts_with(b"M486") => match parse_line(t).get(b'S') {
+            Some(s) if s >= 0.0 => (true, false),
+            Some(_) => (false, true),
+            None => (false, false),
+        },
+        Labels::Klipper => (
+            t.starts_with(b"EXCLUDE_OBJECT_START"),
+            t.starts_with(b"EXCLUDE_OBJECT_END"),
+        ),
+        _ => (false, false),
+    };
+    if starts {
+        *open = Some(t.to_vec());
+    } else if stops {
+        *open = None;
+    }
+}
+
+/// The line that closes the object `start` opened.
+fn stop_label(start: &[u8], labels: Labels, nl: &str) -> String {
+    let s = String::from_utf8_lossy(start.trim_ascii());
+    match labels {
+        Labels::M486 { .. } => format!("M486 S-1{nl}"),
+        Labels::Klipper => format!(
+            "EXCLUDE_OBJECT_END{}{nl}",
+            s.strip_prefix("EXCLUDE_OBJECT_START").unwrap_or("")
+        ),
+        _ => format!(
+            "; stop printing object {}{nl}",
+            s.strip_prefix("; printing object ").unwrap_or(&s)
+        ),
+    }
+}
+
+/// The name the copy's label gives its object (as the layer reader reports it).
+fn copy_object_name(layers: &[crate::layers::Layer], labels: Labels) -> String {
+    let original = layers
+        .iter()
+        .find_map(|l| l.objects.as_ref().and_then(|o| o.first().cloned()));
+    match (labels, original) {
+        (Labels::Comments, Some(o)) => copy_comment_name(&o),
+        (Labels::M486 { first_free }, _) => format!("id {first_free}"),
+        (Labels::Klipper, Some(o)) => format!("{o}_poa_copy"),
+        _ => "poa_copy id:1 copy 0".into(),
+    }
+}
+
+/// `part.stl id:0 copy 0` becomes `part.stl id:0 copy 1` (PrusaSlicer names a second instance
+/// of one object so).
+fn copy_comment_name(name: &str) -> String {
+    match name.rsplit_once(" copy ") {
+        Some((head, n)) => match n.trim().parse::<i64>() {
+            Ok(k) => format!("{head} copy {}", k + 1),
+            Err(_) => format!("{name} (poa copy)"),
+        },
+        None => format!("{name} (poa copy)"),
+    }
+}
+
+/// Refuses what a shift of X and Y cannot follow.
+fn check_shiftable(p: &crate::gcode::Parsed<'_>, m: &Machine, line: u64) -> Result<(), Refusal> {
+    let Command::Code {
+        letter: b'G',
+        number,
+    } = p.command
+    else {
+        return Ok(());
+    };
+    if (0.0..=3.0).contains(&number) && m.xyz_relative() && (p.has(b'X') || p.has(b'Y')) {
+        return Err(Refusal(format!(
+            "line {line} moves X/Y in relative mode (G91); poa ab needs absolute coordinates"
+        )));
+    }
+    if number == 92.0 && (p.has(b'X') || p.has(b'Y')) {
+        return Err(Refusal(format!(
+            "line {line} sets the X/Y position (G92); poa ab cannot shift such a file"
+        )));
+    }
+    Ok(())
+}
+
+/// A line of the copy: X/Y shifted on moves, labels renamed, layer markers and progress
+/// lines left out (the copy prints inside the original's layer). `None` drops the line.
+fn copy_line(raw: &[u8], d: [f64; 2], labels: Labels) -> Option<Vec<u8>> {
+    let content = strip_terminator(raw);
+    let t = content.trim_ascii();
+    const DROP: [&[u8]; 8] = [
+        b";LAYER_CHANGE",
+        b";Z:",
+        b";LAYER:",
+        b";LAYER_COUNT",
+        b";AFTER_LAYER_CHANGE",
+        b";BEFORE_LAYER_CHANGE",
+        b"M73",
+        b"M117",
+    ];
+    if DROP.iter().any(|p| t.starts_with(p)) {
+        return None;
+    }
+    let ending = &raw[content.len()..];
+    let mut out: Vec<u8> = match labels {
+        Labels::Comments
+            if t.starts_with(b"; printing object ")
+                || t.starts_with(b"; stop printing object ") =>
+        {
+            let s = String::from_utf8_lossy(t);
+            let (head, name) = if let Some(n) = s.strip_prefix("; printing object ") {
+                ("; printing object ", n)
+            } else {
+                (
+                    "; stop printing object ",
+                    &s["; stop printing object ".len()..],
+                )
+            };
+            format!("{head}{}", copy_comment_name(name.trim())).into_bytes()
+        }
+        Labels::M486 { first_free } if t.starts_with(b"M486") => {
+            let p = parse_line(t);
+            match p.get(b'S') {
+                Some(s) if s >= 0.0 => format!("M486 S{}", first_free + s as i64).into_bytes(),
+                _ => content.to_vec(),
+            }
+        }
+        Labels::Klipper
+            if t.starts_with(b"EXCLUDE_OBJECT_START") || t.starts_with(b"EXCLUDE_OBJECT_END") =>
+        {
+            rename_klipper(content)
+        }
+        _ => shift_line(content, d),
+    };
+    out.extend_from_slice(ending);
+    Some(out)
+}
+
+fn rename_klipper(content: &[u8]) -> Vec<u8> {
+    let s = String::from_utf8_lossy(content);
+    let mut out = String::new();
+    for (i, part) in s.split(' ').enumerate() {
+        if i > 0 {
+            out.push(' ');
+        }
+        match part.strip_prefix("NAME=") {
+            Some(n) => {
+                let n = n.trim_matches('"');
+                let _ = write!(out, "NAME={n}_poa_copy");
+            }
+            None => out.push_str(part),
+        }
+    }
+    out.into_bytes()
+}
+
+/// After Klipper's `EXCLUDE_OBJECT_DEFINE` lines, the copy's definitions (shifted).
+fn define_klipper_copies(raw: &[u8], d: [f64; 2], out: &mut Vec<u8>) {
+    for line in split_lines(raw) {
+        let content = strip_terminator(line);
+        if !content.starts_with(b"EXCLUDE_OBJECT_DEFINE") {
+            continue;
+        }
+        let s = String::from_utf8_lossy(content);
+        let mut def = String::new();
+        for (i, part) in s.split(' ').enumerate() {
+            if i > 0 {
+                def.push(' ');
+            }
+            if let Some(n) = part.strip_prefix("NAME=") {
+                let _ = write!(def, "NAME={}_poa_copy", n.trim_matches('"'));
+            } else if let Some(c) = part.strip_prefix("CENTER=") {
+                let v: Vec<f64> = c.split(',').filter_map(|x| x.parse().ok()).collect();
+                if v.len() == 2 {
+                    let _ = write!(def, "CENTER={},{}", fmt(v[0] + d[0]), fmt(v[1] + d[1]));
+                } else {
+                    def.push_str(part);
+                }
+            } else if let Some(p) = part.strip_prefix("POLYGON=") {
+                // [[x,y],[x,y],...]
+                let nums: Vec<f64> = p
+                    .split(|c: char| !(c.is_ascii_digit() || c == '.' || c == '-'))
+                    .filter_map(|x| x.parse().ok())
+                    .collect();
+                let pts: Vec<String> = nums
+                    .chunks(2)
+                    .filter(|c| c.len() == 2)
+                    .map(|c| format!("[{},{}]", fmt(c[0] + d[0]), fmt(c[1] + d[1])))
+                    .collect();
+                let _ = write!(def, "POLYGON=[{}]", pts.join(","));
+            } else {
+                def.push_str(part);
+            }
+        }
+        out.extend_from_slice(def.as_bytes());
+        out.extend_from_slice(&line[content.len()..]);
+        if line.len() == content.len() {
+            out.push(b'\n');
+        }
+    }
+}
+
+fn fmt(v: f64) -> String {
+    let s = format!("{v:.3}");
+    let s = s.trim_end_matches('0').trim_end_matches('.');
+    if s == "-0" {
+        "0".into()
+    } else {
+        s.to_string()
+    }
+}
+
+/// `G0`-`G3` with X/Y words get them shifted; everything else is copied.
+fn shift_line(content: &[u8], d: [f64; 2]) -> Vec<u8> {
+    let p = parse_line(content);
+    let is_move = matches!(p.command, Command::Code { letter: b'G', number } if (0.0..=3.0).contains(&number));
+    if !is_move || !(p.has(b'X') || p.has(b'Y')) {
+        return content.to_vec();
+    }
+    // Words up to the comment; the comment stays as written.
+    let code_end = content
+        .iter()
+        .position(|&b| b == b';' || b == b'(')
+        .unwrap_or(content.len());
+    let (code, rest) = content.split_at(code_end);
+    let mut out = Vec::with_capacity(content.len() + 4);
+    let mut i = 0;
+    while i < code.len() {
+        let c = code[i].to_ascii_uppercase();
+        let prev_is_letter = i > 0 && code[i - 1].is_ascii_alphabetic();
+        if (c == b'X' || c == b'Y') && !prev_is_letter {
+            let start = i + 1;
+            let mut end = start;
+            while end < code.len()
+                && (code[end].is_ascii_digit()
+                    || matches!(code[end], b'.' | b'-' | b'+' | b' ')
+                        && (end == start || code[end] != b' '))
+            {
+                end += 1;
+            }
+            let num = std::str::from_utf8(&code[start..end]).ok().map(str::trim);
+            if let Some(v) = num.and_then(|n| n.parse::<f64>().ok()) {
+                let dv = if c == b'X' { d[0] } else { d[1] };
+                out.push(code[i]);
+                out.extend_from_slice(fmt(v + dv).as_bytes());
+                i = end;
+                continue;
+            }
+        }
+        out.push(code[i]);
+        i += 1;
+    }
+    out.extend_from_slice(rest);
+    out
+}
+
+/// The file's way of travelling, for the moves between the copies.
+struct Junction {
+    retract_length: f64,
+    retract_speed: f64,
+    deretract_speed: f64,
+    lift: f64,
+    travel_speed: f64,
+    firmware: bool,
+}
+
+impl Junction {
+    fn from_config(config: &SlicerConfig) -> Junction {
+        let num = |k: &str, d: f64| config.number(k).filter(|v| *v >= 0.0).unwrap_or(d);
+        let retract_speed = num("retract_speed", 35.0).max(1.0);
+        let deretract = num("deretract_speed", 0.0);
+        Junction {
+            retract_length: config.retract_length(),
+            retract_speed,
+            deretract_speed: if deretract > 0.0 {
+                deretract
+            } else {
+                retract_speed
+            },
+            // A lift clears the layer just printed even where the file travels without one.
+            lift: num("retract_lift", 0.0).clamp(0.2, 5.0),
+            travel_speed: num("travel_speed", 150.0).max(1.0),
+            firmware: config.bool("use_firmware_retraction") == Some(true),
+        }
+    }
+
+    /// Moves from state `from` to where `to` (shifted by `d`) expects the nozzle: retracted,
+    /// lifted, travelled, lowered and primed back to `to`'s retraction, with `to`'s E counter
+    /// and feedrate.
+    fn travel(&self, out: &mut String, from: &Machine, to: &Machine, d: [f64; 2], nl: &str) {
+        let relative = from.e_relative();
+        let mut e = from.e_logical();
+        let mut ewrite = |out: &mut String, de: f64, f: f64| {
+            e += de;
+            if relative {
+                let _ = write!(out, "G1 E{} F{}{nl}", fmt5(de), fmt((f * 60.0).round()));
+            } else {
+                let _ = write!(out, "G1 E{} F{}{nl}", fmt5(e), fmt((f * 60.0).round()));
+            }
+        };
+        let target_r = to.retracted.max(0.0);
+        let travel_r = self.retract_length.max(from.retracted).max(target_r);
+        if self.firmware {
+            if !from.firmware_retracted {
+                let _ = write!(out, "G10{nl}");
+            }
+        } else if travel_r - from.retracted > 1e-6 {
+            ewrite(out, -(travel_r - from.retracted), self.retract_speed);
+        }
+        let (p, q) = (from.position(), to.position());
+        let z_up = p[2].max(q[2]) + self.lift;
+        let _ = write!(
+            out,
+            "G1 Z{} F{}{nl}",
+            fmt(z_up),
+            fmt((self.travel_speed * 60.0).round())
+        );
+        let _ = write!(
+            out,
+            "G1 X{} Y{} F{}{nl}",
+            fmt(q[0] + d[0]),
+            fmt(q[1] + d[1]),
+            fmt((self.travel_speed * 60.0).round())
+        );
+        let _ = write!(out, "G1 Z{}{nl}", fmt(q[2]));
+        if self.firmware {
+            if !to.firmware_retracted {
+                let _ = write!(out, "G11{nl}");
+            }
+        } else if travel_r - target_r > 1e-6 {
+            ewrite(out, travel_r - target_r, self.deretract_speed);
+        }
+        if !relative {
+            let _ = write!(out, "G92 E{}{nl}", fmt5(to.e_logical()));
+        }
+        let _ = write!(out, "G1 F{}{nl}", fmt(to.feedrate().round()));
+    }
+}
+
+fn fmt5(v: f64) -> String {
+    let s = format!("{v:.5}");
+    let s = s.trim_end_matches('0').trim_end_matches('.');
+    if s == "-0" {
+        "0".into()
+    } else {
+        s.to_string()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::layers::{LayerReader, ReaderOptions};
+
+    #[test]
+    fn moves_shift_and_nothing_else_does() {
+        let d = [5.0, -1.0];
+        let s = |t: &str| String::from_utf8(shift_line(t.as_bytes(), d)).unwrap();
+        assert_eq!(
+            s("G1 X10 Y20.5 E1.2 F600 ; X1"),
+            "G1 X15 Y19.5 E1.2 F600 ; X1"
+        );
+        assert_eq!(s("G1X10Y20E1"), "G1X15Y19E1");
+        assert_eq!(s("G2 X10 Y0 I5 J0 E1"), "G2 X15 Y-1 I5 J0 E1");
+        assert_eq!(s("G1 Z0.4 F720"), "G1 Z0.4 F720");
+        assert_eq!(s("M104 S200"), "M104 S200");
+    }
+
+    /// A two-layer part in absolute E with M486 labels on a 200 x 200 bed.
+    const PART: &str = "; generated by PrusaSlicer 2.5.0\nM82\nG92 E0\n\
+;LAYER_CHANGE\n;Z:0.2\nG1 Z0.2 F600\nG1 X10 Y10 F3000\nM486 S0\n;TYPE:External perimeter\n;WIDTH:0.45\n\
+G1 X20 Y10 E1\nG1 X20 Y20 E2\nG1 X10 Y20 E3\nG1 X10 Y10 E4\nM486 S-1\nG1 E3.2 F2100\n\
+;LAYER_CHANGE\n;Z:0.4\nG1 Z0.4 F600\nG1 X10 Y10 F3000\nG1 E4 F2100\nM486 S0\n;TYPE:External perimeter\n;WIDTH:0.45\n\
+G1 X20 Y10 E5\nG1 X20 Y20 E6\nG1 X10 Y20 E7\nG1 X10 Y10 E8\nM486 S-1\nM104 S0 ; end\n\
+; bed_shape = 0x0,200x0,200x200,0x200\n; retract_length = 0.8\n";
+
+    #[test]
+    fn a_copy_in_absolute_e_prints_the_same_filament_and_keeps_the_counter() {
+        let config = SlicerConfig::parse(PART.as_bytes());
+        let opts = AbOptions {
+            offset: [50.0, 0.0],
+            gap: 5.0,
+            bed: None,
+        };
+        let plate = build(PART.as_bytes(), &config, &opts).unwrap();
+        let text = String::from_utf8(plate.text.clone()).unwrap();
+        assert_eq!(plate.copy_name, "id 1");
+        assert!(text.contains("M486 S1\n"), "{text}");
+        // The end G-code stays after the last layer's copy.
+        assert!(text.trim_end().ends_with("; retract_length = 0.8"));
+        let end = text.find("M104 S0").unwrap();
+        assert!(text[..end].rfind("M486 S1").is_some());
+        let mut reader = LayerReader::new(
+            &plate.text[..],
+            ReaderOptions {
+                keep_raw: false,
+                config,
+            },
+        );
+        let layers: Vec<_> = reader.by_ref().map(|l| l.unwrap()).collect();
+        let layers: Vec<_> = layers
+            .iter()
+            .filter(|l| l.kind == LayerKind::Layer)
+            .collect();
+        assert_eq!(layers.len(), 2);
+        for l in layers {
+            let e = |o: u32| -> f64 {
+                l.paths
+                    .iter()
+                    .filter(|p| p.object == Some(o))
+                    .map(|p| p.e())
+                    .sum()
+            };
+            assert!(
+                (e(0) - 4.0).abs() < 1e-9 && (e(1) - 4.0).abs() < 1e-9,
+                "{}",
+                l.index
+            );
+            let copy_x = l
+                .paths
+                .iter()
+                .filter(|p| p.object == Some(1))
+                .flat_map(|p| p.points.iter())
+                .all(|p| p[0] >= 60.0 - 1e-9 && p[0] <= 70.0 + 1e-9);
+            assert!(copy_x);
+        }
+        assert!(
+            (plate.added_filament_mm - 8.0).abs() < 1e-6,
+            "{}",
+            plate.added_filament_mm
+        );
+        assert!(plate.added_time_s > 0.0);
+    }
+
+    #[test]
+    fn refuses_relative_moves_and_unknown_beds() {
+        let config = SlicerConfig::parse(PART.as_bytes());
+        let opts = AbOptions {
+            offset: [50.0, 0.0],
+            gap: 5.0,
+            bed: None,
+        };
+        let rel = PART.replacen("G1 X20 Y10 E1", "G91\nG1 X10 Y0 E1\nG90", 1);
+        assert!(build(rel.as_bytes(), &config, &opts)
+            .unwrap_err()
+            .0
+            .contains("G91"));
+        let no_bed = PART.replace("; bed_shape = 0x0,200x0,200x200,0x200\n", "");
+        let cfg = SlicerConfig::parse(no_bed.as_bytes());
+        assert!(build(no_bed.as_bytes(), &cfg, &opts)
+            .unwrap_err()
+            .0
+            .contains("--bed"));
+        let with_bed = AbOptions {
+            bed: Some([0.0, 0.0, 200.0, 200.0]),
+            ..opts
+        };
+        assert!(build(no_bed.as_bytes(), &cfg, &with_bed).is_ok());
+    }
+}
