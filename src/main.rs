@@ -86,12 +86,17 @@ enum Command {
         #[command(flatten)]
         rewrite: RewriteArgs,
     },
-    /// Convert binary G-code (.bgcode) to text G-code.
+    /// Convert between binary G-code (.bgcode) and text G-code, whichever the input is.
     Convert {
-        /// A .bgcode file (recognised by its content, whatever its name).
+        /// A .bgcode file (recognised by its content, whatever its name) or a text G-code file
+        /// written by PrusaSlicer.
         input: PathBuf,
-        /// The text G-code to write.
+        /// The file to write: text from binary, binary from text.
         output: PathBuf,
+        /// Block compression for text -> binary: `prusaslicer` (what PrusaSlicer 2.7+ writes)
+        /// or `libbgcode` (libbgcode's converters: print metadata uncompressed).
+        #[arg(long, value_name = "PRESET", default_value = "prusaslicer", value_parser = ["prusaslicer", "libbgcode"])]
+        preset: String,
     },
     /// List the built-in settings profiles, or print one as YAML to copy and edit.
     Profiles {
@@ -397,26 +402,34 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             bed,
             rewrite,
         } => ab_command(&file, &out, &offset, gap, bed.as_deref(), &rewrite),
-        Command::Convert { input, output: out } => {
+        Command::Convert {
+            input,
+            output: out,
+            preset,
+        } => {
             let data = std::fs::read(&input).map_err(|source| printonair::Error::Read {
                 path: input.clone(),
                 source,
             })?;
-            if !printonair::bgcode::is_bgcode(&data) {
-                anyhow::bail!(
-                    "{} is text G-code; converting text to binary G-code is not supported yet",
-                    input.display()
-                );
-            }
-            let decoded =
-                printonair::bgcode::decode(&data).map_err(|e| printonair::Error::NotGcode {
-                    path: input.clone(),
-                    reason: format!("the binary G-code is damaged: {e}"),
-                })?;
-            let text = decoded.to_ascii();
+            let bytes = if printonair::bgcode::is_bgcode(&data) {
+                let decoded =
+                    printonair::bgcode::decode(&data).map_err(|e| printonair::Error::NotGcode {
+                        path: input.clone(),
+                        reason: format!("the binary G-code is damaged: {e}"),
+                    })?;
+                decoded.to_ascii()
+            } else {
+                let mut config = printonair::bgcode::BinarizeConfig::prusaslicer();
+                if preset == "libbgcode" {
+                    config.print_metadata = printonair::bgcode::Compression::None;
+                }
+                let file = printonair::bgcode::from_ascii(&data, &config)
+                    .map_err(|e| anyhow::anyhow!("{}: {e}", input.display()))?;
+                printonair::bgcode::encode(&file)
+            };
             output::write_atomic(&out, |w| {
                 use std::io::Write;
-                w.write_all(&text)
+                w.write_all(&bytes)
                     .map_err(|source| printonair::Error::Write {
                         path: out.clone(),
                         source,

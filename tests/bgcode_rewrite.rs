@@ -160,3 +160,84 @@ fn the_reference_library_reads_what_poa_writes() {
         "libbgcode and poa disagree on the text"
     );
 }
+
+/// Text -> binary: `poa convert` writes the same bytes as libbgcode's own converter (through
+/// pybgcode, with its default settings) for PrusaSlicer text of 2.5, 2.6 and 2.8.
+#[test]
+fn convert_to_binary_matches_the_reference_converter() {
+    let dir = tempfile::tempdir().unwrap();
+    let shared = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/reference/bgcode-samples");
+    let inputs = [
+        shared.join("mini_cube_b_ref.gcode"),
+        shared.join("mini_cube_ps2.8.1_ref.gcode"),
+        shared.join("mini_cube_ps2.8.1.gcode"),
+        std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+            .join("sample-gcode/circ_overhang_prusa_rel.gcode"),
+    ];
+    let script = "import pybgcode, sys\n\
+        i = pybgcode.open(sys.argv[1], 'r'); o = pybgcode.open(sys.argv[2], 'wb')\n\
+        r = pybgcode.from_ascii_to_binary(i, o, pybgcode.get_config())\n\
+        pybgcode.close(i); pybgcode.close(o)\n\
+        print(pybgcode.translate_result(r))\n";
+    for input in inputs {
+        let theirs = dir.path().join("theirs.bgcode");
+        let o = Command::new("python3")
+            .arg("-c")
+            .arg(script)
+            .arg(&input)
+            .arg(&theirs)
+            .output()
+            .expect("python3");
+        assert!(
+            o.status.success(),
+            "pybgcode: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        assert_eq!(String::from_utf8_lossy(&o.stdout).trim(), "Success");
+        let ours = dir.path().join("ours.bgcode");
+        let o = Command::new(env!("CARGO_BIN_EXE_poa"))
+            .args(["convert", "--preset", "libbgcode"])
+            .arg(&input)
+            .arg(&ours)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        assert!(
+            std::fs::read(&ours).unwrap() == std::fs::read(&theirs).unwrap(),
+            "{}: poa and libbgcode write different binaries",
+            input.display()
+        );
+        // And back: the binary converts to the text libbgcode makes of it.
+        let text = dir.path().join("back.gcode");
+        let o = Command::new(env!("CARGO_BIN_EXE_poa"))
+            .arg("convert")
+            .arg(&ours)
+            .arg(&text)
+            .output()
+            .unwrap();
+        assert!(o.status.success());
+        let decoded = bgcode::decode(&std::fs::read(&theirs).unwrap()).unwrap();
+        assert!(std::fs::read(&text).unwrap() == decoded.to_ascii());
+    }
+}
+
+/// Text that is not PrusaSlicer's cannot become binary G-code (the format needs its metadata);
+/// the refusal says so and writes nothing.
+#[test]
+fn convert_refuses_text_without_prusaslicer_metadata() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out.bgcode");
+    let o = Command::new(env!("CARGO_BIN_EXE_poa"))
+        .arg("convert")
+        .arg(
+            std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+                .join("sample-gcode/rect_overhang_cura.gcode"),
+        )
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("PrusaSlicer"));
+    assert!(!out.exists());
+}

@@ -19,8 +19,11 @@
 //! of other bytes. Either way `decode(&encode(b))` has the payloads of `b`, up to MeatPack's
 //! own normalisation of G-code text.
 
+mod ascii;
 mod heatshrink;
 mod meatpack;
+
+pub use ascii::{from_ascii, BinarizeConfig};
 
 use std::io::Read;
 
@@ -37,6 +40,8 @@ const FILE_HEADER_LEN: usize = 10;
 pub enum BgcodeError {
     #[error("not a binary G-code file: it does not start with \"GCDE\"")]
     BadMagic,
+    #[error("cannot convert this text to binary G-code: {0}")]
+    InvalidText(String),
     #[error("binary G-code version {0} is not supported (only version 1 is)")]
     UnsupportedVersion(u32),
     #[error("binary G-code file header is truncated ({len} bytes, 10 needed)")]
