@@ -1,15 +1,20 @@
 #!/usr/bin/env python3
 """Builds a large plate from one PrusaSlicer file: every layer is printed N times, each copy
-shifted in X/Y, like a plate of many identical parts. Usage: make_plate.py IN SIZE_MB OUT."""
+shifted in X/Y, like a plate of many identical parts. Usage: make_plate.py IN SIZE_MB OUT [LAYERS]
+(LAYERS: keep only the first LAYERS layers, e.g. those below the part's first overhang, for a
+plate without regions)."""
 import re
 import sys
 
 src, size_mb, out = sys.argv[1], int(sys.argv[2]), sys.argv[3]
+max_layers = int(sys.argv[4]) if len(sys.argv) > 4 else None
 text = open(src, encoding="utf-8", errors="surrogateescape").read()
 # The end G-code, statistics and config block are written once, after the last layer.
 text, tail_sep, tail = text.partition("\n; filament used [mm]")
 head, sep, rest = text.partition(";LAYER_CHANGE\n")
 layers = (sep + rest).split(";LAYER_CHANGE\n")[1:]
+if max_layers is not None:
+    layers = layers[:max_layers]
 body_len = sum(len(l) for l in layers)
 copies = max(1, (size_mb * 1024 * 1024) // max(body_len, 1) + 2)
 cols = int(copies ** 0.5) + 1

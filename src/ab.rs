@@ -34,8 +34,11 @@ pub struct AbOptions {
 #[derive(Debug, Clone)]
 pub struct AbPlate {
     pub text: Vec<u8>,
-    /// The copy's object name, as the layer reader will report it.
+    /// The copy's object name, as the layer reader will report it (the first object's copy,
+    /// when the slice has several).
     pub copy_name: String,
+    /// Every copied object's name, as the layer reader will report it.
+    pub copy_names: Vec<String>,
     pub layers: usize,
     /// Filament (mm) and print time (s) the copy and its travels add.
     pub added_filament_mm: f64,
@@ -240,7 +243,8 @@ pub fn build(text: &[u8], config: &SlicerConfig, opts: &AbOptions) -> Result<AbP
     }
 
     let labels = detect_labels(text);
-    let copy_name = copy_object_name(&layers, labels);
+    let copy_names = copy_object_names(&layers, labels);
+    let copy_name = copy_names[0].clone();
     let motion = Junction::from_config(config);
     let mut out: Vec<u8> = Vec::with_capacity(text.len() * 2);
     let mut count = 0;
@@ -358,6 +362,7 @@ pub fn build(text: &[u8], config: &SlicerConfig, opts: &AbOptions) -> Result<AbP
     Ok(AbPlate {
         text: out,
         copy_name,
+        copy_names,
         layers: count,
         added_filament_mm: added_filament,
         added_time_s: added_time,
@@ -424,16 +429,39 @@ fn stop_label(start: &[u8], labels: Labels, nl: &str) -> String {
     }
 }
 
-/// The name the copy's label gives its object (as the layer reader reports it).
-fn copy_object_name(layers: &[crate::layers::Layer], labels: Labels) -> String {
-    let original = layers
+/// The names the copy's labels give its objects (as the layer reader reports them), one per
+/// labelled object of the slice; at least one.
+fn copy_object_names(layers: &[crate::layers::Layer], labels: Labels) -> Vec<String> {
+    let originals: Vec<String> = layers
         .iter()
-        .find_map(|l| l.objects.as_ref().and_then(|o| o.first().cloned()));
-    match (labels, original) {
-        (Labels::Comments, Some(o)) => copy_comment_name(&o),
-        (Labels::M486 { first_free }, _) => format!("id {first_free}"),
-        (Labels::Klipper, Some(o)) => format!("{o}_poa_copy"),
-        _ => "poa_copy id:1 copy 0".into(),
+        .rev()
+        .find_map(|l| l.objects.clone())
+        .unwrap_or_default();
+    let names: Vec<String> = match labels {
+        Labels::Comments => originals.iter().map(|o| copy_comment_name(o)).collect(),
+        Labels::M486 { first_free } => originals
+            .iter()
+            .filter_map(|o| {
+                let id: i64 = o
+                    .rsplit_once("id ")?
+                    .1
+                    .trim_end_matches(')')
+                    .trim()
+                    .parse()
+                    .ok()?;
+                Some(match o.split_once(" (id ") {
+                    Some((name, _)) => format!("{name} (id {})", first_free + id),
+                    None => format!("id {}", first_free + id),
+                })
+            })
+            .collect(),
+        Labels::Klipper => originals.iter().map(|o| format!("{o}_poa_copy")).collect(),
+        Labels::None => Vec::new(),
+    };
+    if names.is_empty() {
+        vec!["poa_copy id:1 copy 0".into()]
+    } else {
+        names
     }
 }
 

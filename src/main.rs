@@ -669,8 +669,8 @@ fn ab_command(
     )
     .map_err(|e| anyhow::anyhow!("cannot make an A/B plate of {}: {e}", file.display()))?;
     let mut opts = args.options(&opened.config)?;
-    opts.objects = emit::ObjectFilter::from_globs(std::slice::from_ref(&plate.copy_name), &[])
-        .map_err(|e| anyhow::anyhow!(e))?;
+    opts.objects =
+        emit::ObjectFilter::from_globs(&plate.copy_names, &[]).map_err(|e| anyhow::anyhow!(e))?;
     let read_err = |source| printonair::Error::Read {
         path: file.to_path_buf(),
         source,

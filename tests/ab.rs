@@ -154,3 +154,48 @@ fn ab_refuses_a_copy_off_the_bed_or_on_the_part() {
         assert!(!out.exists());
     }
 }
+
+/// Klipper labels: each object's copy gets its own EXCLUDE_OBJECT name and definition, and
+/// prints the original's strands shifted.
+#[test]
+fn ab_with_klipper_labels_defines_and_names_every_copy() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("ab.gcode");
+    let o = poa()
+        .arg("ab")
+        .arg(common::sample("klipper_objects.gcode"))
+        .arg("-o")
+        .arg(&out)
+        .args(["--offset", "0,30", "--bed", "0,0,250,210"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let data = std::fs::read(&out).unwrap();
+    let text = String::from_utf8_lossy(&data);
+    for name in ["cube_a_id_0_copy_0_poa_copy", "cube_b_id_1_copy_0_poa_copy"] {
+        assert!(
+            text.contains(&format!("EXCLUDE_OBJECT_DEFINE NAME={name} ")),
+            "{name}"
+        );
+    }
+    let (layers, reader) = common::read_layers(&data, false);
+    let names = reader.objects().to_vec();
+    assert_eq!(names.len(), 4, "{names:?}");
+    for l in layers.iter().filter(|l| l.kind == LayerKind::Layer) {
+        for (i, n) in names
+            .iter()
+            .enumerate()
+            .filter(|(_, n)| !n.ends_with("_poa_copy"))
+        {
+            let copy = names
+                .iter()
+                .position(|c| *c == format!("{n}_poa_copy"))
+                .unwrap();
+            assert!(same_points(
+                &only(l, Some(i as u32)),
+                &only(l, Some(copy as u32)),
+                [0.0, 30.0]
+            ));
+        }
+    }
+}
