@@ -377,12 +377,19 @@ impl Estimator {
     }
 
     fn motion(&mut self, m: &Move) {
+        let feed = m.feed / 60.0 * self.feed_multiply;
+        if m.arc.is_none() {
+            let delta = [
+                m.to[0] - m.from[0],
+                m.to[1] - m.from[1],
+                m.to[2] - m.from[2],
+                m.e,
+            ];
+            self.block(m.line, delta, feed);
+            return;
+        }
         // Arcs: the length along the arc, split like a firmware does into short chords.
-        let points: Vec<[f64; 2]> = if m.arc.is_some() {
-            m.points(0.02)
-        } else {
-            vec![[m.from[0], m.from[1]], [m.to[0], m.to[1]]]
-        };
+        let points = m.points(0.02);
         let n = (points.len() - 1).max(1) as f64;
         for w in points.windows(2) {
             let delta = [
@@ -391,7 +398,7 @@ impl Estimator {
                 (m.to[2] - m.from[2]) / n,
                 m.e / n,
             ];
-            self.block(m.line, delta, m.feed / 60.0 * self.feed_multiply);
+            self.block(m.line, delta, feed);
         }
     }
 
@@ -516,7 +523,7 @@ impl Estimator {
             _ => safe,
         };
         let v_allow = (safe * safe + 2.0 * acc * distance).sqrt();
-        let mut b = Block {
+        let b = Block {
             line,
             distance,
             acceleration: acc,
@@ -529,7 +536,7 @@ impl Estimator {
             recalculate: true,
             ..Default::default()
         };
-        b.trapezoid();
+        // Its trapezoid is computed when the queue is planned (every new block is flagged).
         self.blocks.push(b);
         self.prev = Some(Prev {
             feedrate: v,
@@ -547,7 +554,9 @@ impl Estimator {
         if n < 2 {
             if keep == 0 {
                 // A lone block still takes its time.
-                if let Some(b) = self.blocks.pop() {
+                if let Some(mut b) = self.blocks.pop() {
+                    b.exit = b.safe;
+                    b.trapezoid();
                     self.commit(&b);
                 }
             }
@@ -596,10 +605,12 @@ impl Estimator {
         blocks[last].trapezoid();
         blocks[last].recalculate = false;
         let commit = n.saturating_sub(keep);
-        let done: Vec<Block> = self.blocks.drain(..commit).collect();
-        for b in &done {
+        let mut blocks = std::mem::take(&mut self.blocks);
+        for b in &blocks[..commit] {
             self.commit(b);
         }
+        blocks.drain(..commit);
+        self.blocks = blocks;
         if let Some(front) = self.blocks.first_mut() {
             front.max_entry = front.entry;
         }
@@ -733,6 +744,14 @@ mod tests {
         // Feedrate capped by M203 (mm/s by default).
         let capped = est("M203 X20 Y20\nG1 F6000\nG1 X100 E5\n");
         assert!(capped > 100.0 / 20.0);
+    }
+
+    #[test]
+    fn a_lone_move_after_a_flush_takes_its_time() {
+        // G92 without E flushes the planner between the two moves.
+        let t = est("G1 F3000\nG1 X100 E5\nG92 X0\nG1 X100 E10\n");
+        let one = est("G1 F3000\nG1 X100 E5\n");
+        assert!((t - 2.0 * one).abs() < 1e-6, "{t} vs {one}");
     }
 
     #[test]

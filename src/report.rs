@@ -541,7 +541,7 @@ pub fn check<R: BufRead + Send>(
     };
     // Layers are checked in parallel batches; each needs the layer before it, so the last
     // layer of a batch is carried into the next.
-    const BATCH: usize = 8;
+    const BATCH: usize = 4;
     let checks = geometry::read_ahead(reader.by_ref(), |layers| {
         let mut checks: Vec<LayerCheck> = Vec::new();
         let mut batch: Vec<crate::layers::Layer> = Vec::with_capacity(BATCH + 1);

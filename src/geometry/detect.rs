@@ -14,8 +14,9 @@ use crate::layers::{Layer, LayerKind};
 
 use super::{find_regions, printed_area, DetectOptions, Region};
 
-/// Layers per parallel batch: enough to keep two cores busy, few enough to keep memory flat.
-const BATCH: usize = 8;
+/// Layers per parallel batch: enough to keep two cores busy, few enough to keep memory flat
+/// (a layer of a big plate holds megabytes of strands).
+const BATCH: usize = 4;
 
 /// One block of the file with what detection found.
 pub struct Detected {
@@ -27,8 +28,8 @@ pub struct Detected {
     pub regions: Vec<Region>,
 }
 
-/// Layers read ahead of the geometry: enough for the next batch while one is computed.
-const READ_AHEAD: usize = 2 * BATCH;
+/// Layers read ahead of the geometry: the next batch, read while one is computed.
+const READ_AHEAD: usize = BATCH;
 
 /// Runs detection over `layers`, calling `sink` for each block in order.
 ///
