@@ -96,6 +96,7 @@ fn progress_line(
         _ => 1.0,
     };
     let mut values: Vec<(u8, f64)> = parsed.words.iter().map(|w| (w.letter, w.value)).collect();
+    let mut progress_words = false;
     for (pct, rem, scale) in [(b'P', b'R', 1.0), (b'Q', b'S', silent_scale)] {
         let total = if pct == b'P' {
             &mut totals.normal
@@ -111,6 +112,7 @@ fn progress_line(
         if !(p_old.is_finite() && r_old.is_finite()) {
             continue;
         }
+        progress_words = true;
         // The slicer truncates the remaining minutes: the time lies in [R, R + 1) minutes.
         values[r].1 = ((r_old * 60.0 + 30.0 + after * scale) / 60.0).floor();
         if let Some(t) = *total {
@@ -135,6 +137,10 @@ fn progress_line(
                 *last = values[p].1;
             }
         }
+    }
+    if !progress_words {
+        // `M73 C..`, `M73 P50` alone and the like: nothing of ours to recompute.
+        return None;
     }
     let mut line = b"M73".to_vec();
     for (letter, v) in values {
@@ -216,7 +222,7 @@ mod tests {
 
     #[test]
     fn nothing_added_changes_nothing() {
-        let text = "M73 P0 R10\nM73 P50 R5\nM104 S200\nM73 P100 R0\n";
+        let text = "M73 P0 R10\nM73 P50 R5\nM104 S200\nM73 P100 R0\nM73 P50.5\nM73 C2.50\n";
         assert_eq!(
             run(
                 text,
