@@ -141,6 +141,8 @@ enum Labels {
     },
     /// `EXCLUDE_OBJECT_START NAME=...` (Klipper).
     Klipper,
+    /// `;MESH:name` ... `;MESH:NONMESH` (Cura).
+    Cura,
     None,
 }
 
@@ -148,9 +150,12 @@ fn detect_labels(text: &[u8]) -> Labels {
     let mut max_id: Option<i64> = None;
     let mut comments = false;
     let mut klipper = false;
+    let mut cura = false;
     for raw in split_lines(text) {
         let t = strip_terminator(raw).trim_ascii();
-        if t.starts_with(b"; printing object ") {
+        if t.starts_with(b";MESH:") && t != b";MESH:NONMESH" {
+            cura = true;
+        } else if t.starts_with(b"; printing object ") {
             comments = true;
         } else if t.starts_with(b"EXCLUDE_OBJECT_START") {
             klipper = true;
@@ -166,6 +171,8 @@ fn detect_labels(text: &[u8]) -> Labels {
         Labels::M486 { first_free: m + 1 }
     } else if klipper {
         Labels::Klipper
+    } else if cura {
+        Labels::Cura
     } else {
         Labels::None
     }
@@ -195,13 +202,11 @@ pub fn build(text: &[u8], config: &SlicerConfig, opts: &AbOptions) -> Result<AbP
         },
     );
     let mut layers = Vec::new();
-    let mut material = Bounds::empty();
     let mut copied = Bounds::empty();
     for l in reader {
         let l = l.map_err(|e| Refusal(format!("cannot read the file: {e}")))?;
         for p in &l.paths {
             for q in &p.points {
-                material.add(*q, p.width / 2.0);
                 if l.kind == LayerKind::Layer {
                     copied.add(*q, p.width / 2.0);
                 }
@@ -213,7 +218,23 @@ pub fn build(text: &[u8], config: &SlicerConfig, opts: &AbOptions) -> Result<AbP
         return Err(Refusal("the file prints nothing to copy".into()));
     }
     let copy = copied.shifted(d);
-    let gap = copy.distance(&material);
+    // Clearance from every strand of the original (part, skirt, priming line), each by its
+    // own box, so that a priming line along the bed's edge does not block the whole bed.
+    let gap = layers
+        .iter()
+        .flat_map(|l| l.paths.iter())
+        .map(|p| {
+            let mut b = Bounds::empty();
+            for q in &p.points {
+                b.add(*q, p.width / 2.0);
+            }
+            if b.is_empty() {
+                f64::INFINITY
+            } else {
+                copy.distance(&b)
+            }
+        })
+        .fold(f64::INFINITY, f64::min);
     if gap < opts.gap {
         return Err(Refusal(format!(
             "the copy would come within {gap:.1} mm of the original's material (at least {:.1} mm needed); choose a larger --offset",
@@ -242,6 +263,14 @@ pub fn build(text: &[u8], config: &SlicerConfig, opts: &AbOptions) -> Result<AbP
         )));
     }
 
+    if let Some(line) =
+        split_lines(text).position(|raw| parse_line(strip_terminator(raw)).is_code(b'G', 20.0))
+    {
+        return Err(Refusal(format!(
+            "line {} switches to inches (G20); poa ab needs a file in millimetres",
+            line + 1
+        )));
+    }
     let labels = detect_labels(text);
     let copy_names = copy_object_names(&layers, labels);
     let copy_name = copy_names[0].clone();
@@ -404,6 +433,10 @@ fn track_label(open: &mut Option<Vec<u8>>, raw: &[u8], labels: Labels) {
             t.starts_with(b"EXCLUDE_OBJECT_START"),
             t.starts_with(b"EXCLUDE_OBJECT_END"),
         ),
+        Labels::Cura if t.starts_with(b";MESH:") => {
+            let none = t == b";MESH:NONMESH";
+            (!none, none)
+        }
         _ => (false, false),
     };
     if starts {
@@ -418,6 +451,7 @@ fn stop_label(start: &[u8], labels: Labels, nl: &str) -> String {
     let s = String::from_utf8_lossy(start.trim_ascii());
     match labels {
         Labels::M486 { .. } => format!("M486 S-1{nl}"),
+        Labels::Cura => format!(";MESH:NONMESH{nl}"),
         Labels::Klipper => format!(
             "EXCLUDE_OBJECT_END{}{nl}",
             s.strip_prefix("EXCLUDE_OBJECT_START").unwrap_or("")
@@ -455,7 +489,9 @@ fn copy_object_names(layers: &[crate::layers::Layer], labels: Labels) -> Vec<Str
                 })
             })
             .collect(),
-        Labels::Klipper => originals.iter().map(|o| format!("{o}_poa_copy")).collect(),
+        Labels::Klipper | Labels::Cura => {
+            originals.iter().map(|o| format!("{o}_poa_copy")).collect()
+        }
         Labels::None => Vec::new(),
     };
     if names.is_empty() {
@@ -489,6 +525,11 @@ fn check_shiftable(p: &crate::gcode::Parsed<'_>, m: &Machine, line: u64) -> Resu
     if (0.0..=3.0).contains(&number) && m.xyz_relative() && (p.has(b'X') || p.has(b'Y')) {
         return Err(Refusal(format!(
             "line {line} moves X/Y in relative mode (G91); poa ab needs absolute coordinates"
+        )));
+    }
+    if number == 20.0 {
+        return Err(Refusal(format!(
+            "line {line} switches to inches (G20); poa ab needs a file in millimetres"
         )));
     }
     if number == 92.0 && (p.has(b'X') || p.has(b'Y')) {
@@ -545,6 +586,11 @@ fn copy_line(raw: &[u8], d: [f64; 2], labels: Labels) -> Option<Vec<u8>> {
             if t.starts_with(b"EXCLUDE_OBJECT_START") || t.starts_with(b"EXCLUDE_OBJECT_END") =>
         {
             rename_klipper(content)
+        }
+        Labels::Cura if t.starts_with(b";MESH:") && t != b";MESH:NONMESH" => {
+            let mut line = t.to_vec();
+            line.extend_from_slice(b"_poa_copy");
+            line
         }
         _ => shift_line(content, d),
     };

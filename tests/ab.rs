@@ -199,3 +199,44 @@ fn ab_with_klipper_labels_defines_and_names_every_copy() {
         }
     }
 }
+
+/// Cura's `;MESH:` labels get a copy of their own (so only the copy is rewritten); a file in
+/// inches is refused, since a shift in mm would land elsewhere.
+#[test]
+fn ab_handles_cura_labels_and_refuses_inches() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("ab.gcode");
+    let o = poa()
+        .arg("ab")
+        .arg(common::sample("rect_overhang_cura.gcode"))
+        .arg("-o")
+        .arg(&out)
+        .args(["--offset", "80,0", "--bed", "0,0,300,300"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        stdout.contains("rect_overhang.stl_poa_copy") && stdout.contains("1 region(s)"),
+        "{stdout}"
+    );
+    let data = std::fs::read(&out).unwrap();
+    let (_, reader) = common::read_layers(&data, false);
+    assert_eq!(
+        reader.objects(),
+        ["rect_overhang.stl", "rect_overhang.stl_poa_copy"]
+    );
+
+    let out = dir.path().join("inch.gcode");
+    let o = poa()
+        .arg("ab")
+        .arg(common::sample("inches_g20.gcode"))
+        .arg("-o")
+        .arg(&out)
+        .args(["--offset", "80,0", "--bed", "0,0,300,300"])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("inches"));
+    assert!(!out.exists());
+}
