@@ -15,9 +15,20 @@
 
 use std::fmt::Write as _;
 
+use crate::emit::fmt_num;
 use crate::gcode::{parse_line, split_lines, strip_terminator, Command};
 use crate::layers::{LayerKind, LayerReader, ReaderOptions, SlicerConfig};
 use crate::machine::{Action, Machine};
+
+/// Coordinates to the micron, as slicers write them.
+fn fmt(v: f64) -> String {
+    fmt_num(v, 3)
+}
+
+/// E values to 5 decimals, as slicers write them.
+fn fmt_e(v: f64) -> String {
+    fmt_num(v, 5)
+}
 
 /// How to lay out the copy.
 #[derive(Debug, Clone)]
@@ -290,6 +301,7 @@ pub fn build(text: &[u8], config: &SlicerConfig, opts: &AbOptions) -> Result<AbP
             (LayerKind::Layer, Some(s)) => s,
             _ => {
                 out.extend_from_slice(&l.raw);
+                limits.track_limits(&l.raw);
                 if labels == Labels::Klipper {
                     define_klipper_copies(&l.raw, d, &mut out);
                 }
@@ -320,6 +332,7 @@ pub fn build(text: &[u8], config: &SlicerConfig, opts: &AbOptions) -> Result<AbP
             track_label(&mut open, raw, labels);
         }
         if cut == 0 {
+            limits.track_limits(&l.raw);
             for raw in &lines {
                 out.extend_from_slice(raw);
                 track_label(&mut open, raw, labels);
@@ -372,17 +385,14 @@ pub fn build(text: &[u8], config: &SlicerConfig, opts: &AbOptions) -> Result<AbP
         }
         out.extend_from_slice(back.as_bytes());
         // What the copy costs: its lines and both travels, from where the original stopped.
-        let (f, t) = segment_cost(&limits, &at_cut, &out[copy_from..]);
+        let (t, f) = crate::estimate::run_text(&limits, &at_cut, &out[copy_from..]);
         added_filament += f;
         added_time += t;
         added.push(crate::progress::Added {
             offset: out.len() as u64,
             seconds: t,
         });
-        for raw in &lines {
-            let parsed = parse_line(strip_terminator(raw));
-            limits.line(&parsed, &Action::None);
-        }
+        limits.track_limits(&l.raw);
         for raw in &lines[cut..] {
             out.extend_from_slice(raw);
             track_label(&mut open, raw, labels);
@@ -397,23 +407,6 @@ pub fn build(text: &[u8], config: &SlicerConfig, opts: &AbOptions) -> Result<AbP
         added_time_s: added_time,
         added,
     })
-}
-
-/// Filament pushed (mm) and print time (s) of `text` run from state `from`.
-fn segment_cost(limits: &crate::estimate::Estimator, from: &Machine, text: &[u8]) -> (f64, f64) {
-    let mut est = limits.fresh();
-    let mut machine = from.clone();
-    let mut filament = 0.0;
-    for raw in split_lines(text) {
-        let parsed = parse_line(strip_terminator(raw));
-        let action = machine.step(&parsed, 0);
-        if let Action::Move(m) = &action {
-            // Net: the travels' retractions are primed back.
-            filament += m.e;
-        }
-        est.line(&parsed, &action);
-    }
-    (filament, est.finish().0)
 }
 
 /// Follows object labels: `open` is the start line of the object being printed, if any.
@@ -662,16 +655,6 @@ fn define_klipper_copies(raw: &[u8], d: [f64; 2], out: &mut Vec<u8>) {
     }
 }
 
-fn fmt(v: f64) -> String {
-    let s = format!("{v:.3}");
-    let s = s.trim_end_matches('0').trim_end_matches('.');
-    if s == "-0" {
-        "0".into()
-    } else {
-        s.to_string()
-    }
-}
-
 /// `G0`-`G3` with X/Y words get them shifted; everything else is copied.
 fn shift_line(content: &[u8], d: [f64; 2]) -> Vec<u8> {
     let p = parse_line(content);
@@ -755,9 +738,9 @@ impl Junction {
         let mut ewrite = |out: &mut String, de: f64, f: f64| {
             e += de;
             if relative {
-                let _ = write!(out, "G1 E{} F{}{nl}", fmt5(de), fmt((f * 60.0).round()));
+                let _ = write!(out, "G1 E{} F{}{nl}", fmt_e(de), fmt((f * 60.0).round()));
             } else {
-                let _ = write!(out, "G1 E{} F{}{nl}", fmt5(e), fmt((f * 60.0).round()));
+                let _ = write!(out, "G1 E{} F{}{nl}", fmt_e(e), fmt((f * 60.0).round()));
             }
         };
         let target_r = to.retracted.max(0.0);
@@ -793,19 +776,9 @@ impl Junction {
             ewrite(out, travel_r - target_r, self.deretract_speed);
         }
         if !relative {
-            let _ = write!(out, "G92 E{}{nl}", fmt5(to.e_logical()));
+            let _ = write!(out, "G92 E{}{nl}", fmt_e(to.e_logical()));
         }
         let _ = write!(out, "G1 F{}{nl}", fmt(to.feedrate().round()));
-    }
-}
-
-fn fmt5(v: f64) -> String {
-    let s = format!("{v:.5}");
-    let s = s.trim_end_matches('0').trim_end_matches('.');
-    if s == "-0" {
-        "0".into()
-    } else {
-        s.to_string()
     }
 }
 

@@ -625,6 +625,22 @@ impl Estimator {
         }
     }
 
+    /// Takes in the limit-setting lines (M201, M203, M204, M205, M220) of `raw`, skipping the
+    /// moves: cheap enough to follow the limits through a whole file.
+    pub fn track_limits(&mut self, raw: &[u8]) {
+        let starts =
+            std::iter::once(0).chain(memchr::memmem::find_iter(raw, b"\nM2").map(|i| i + 1));
+        for at in starts {
+            let rest = &raw[at..];
+            if !(rest.starts_with(b"M20") || rest.starts_with(b"M220")) {
+                continue;
+            }
+            let end = memchr::memchr(b'\n', rest).map_or(rest.len(), |i| i + 1);
+            let parsed = crate::gcode::parse_line(crate::gcode::strip_terminator(&rest[..end]));
+            self.line(&parsed, &Action::None);
+        }
+    }
+
     /// An estimator with the limits and accelerations in force now and nothing planned.
     pub fn fresh(&self) -> Estimator {
         let mut e = Estimator::new(self.limits.clone());
@@ -646,6 +662,23 @@ impl Estimator {
         self.flush();
         (self.time, self.marks)
     }
+}
+
+/// Print time (s) and net filament (mm) of `text` run from machine state `start`, with the
+/// limits and accelerations `limits` has now.
+pub fn run_text(limits: &Estimator, start: &crate::machine::Machine, text: &[u8]) -> (f64, f64) {
+    let mut est = limits.fresh();
+    let mut machine = start.clone();
+    let mut filament = 0.0;
+    for raw in crate::gcode::split_lines(text) {
+        let parsed = crate::gcode::parse_line(crate::gcode::strip_terminator(raw));
+        let action = machine.step(&parsed, 0);
+        if let Action::Move(m) = &action {
+            filament += m.e;
+        }
+        est.line(&parsed, &action);
+    }
+    (est.finish().0, filament)
 }
 
 /// Estimates the print time of G-code text, in seconds.
