@@ -699,7 +699,8 @@ fn shift_line(content: &[u8], d: [f64; 2]) -> Vec<u8> {
     out
 }
 
-/// The file's way of travelling, for the moves between the copies.
+/// The file's way of travelling (retraction, lift, travel speed: the rewrite's
+/// [`crate::emit::Motion`]), for the moves between the copies.
 struct Junction {
     retract_length: f64,
     retract_speed: f64,
@@ -711,21 +712,15 @@ struct Junction {
 
 impl Junction {
     fn from_config(config: &SlicerConfig) -> Junction {
-        let num = |k: &str, d: f64| config.number(k).filter(|v| *v >= 0.0).unwrap_or(d);
-        let retract_speed = num("retract_speed", 35.0).max(1.0);
-        let deretract = num("deretract_speed", 0.0);
+        let m = crate::emit::Motion::from_config(config, &crate::poa::PoaSettings::default());
         Junction {
-            retract_length: config.retract_length(),
-            retract_speed,
-            deretract_speed: if deretract > 0.0 {
-                deretract
-            } else {
-                retract_speed
-            },
+            retract_length: m.retract_length,
+            retract_speed: m.retract_speed,
+            deretract_speed: m.deretract_speed,
             // A lift clears the layer just printed even where the file travels without one.
-            lift: num("retract_lift", 0.0).clamp(0.2, 5.0),
-            travel_speed: num("travel_speed", 150.0).max(1.0),
-            firmware: config.bool("use_firmware_retraction") == Some(true),
+            lift: m.lift.clamp(0.2, 5.0),
+            travel_speed: m.travel_speed,
+            firmware: m.firmware_retraction,
         }
     }
 
