@@ -9,6 +9,18 @@ fn poa() -> std::process::Command {
     std::process::Command::new(env!("CARGO_BIN_EXE_poa"))
 }
 
+/// Runs `poa ab INPUT -o OUT` with `args`.
+fn ab(input: &std::path::Path, out: &std::path::Path, args: &[&str]) -> std::process::Output {
+    poa()
+        .arg("ab")
+        .arg(input)
+        .arg("-o")
+        .arg(out)
+        .args(args)
+        .output()
+        .unwrap()
+}
+
 /// The layer with only the paths of one object (None: paths of no object).
 fn only(layer: &Layer, object: Option<u32>) -> Layer {
     let mut l = layer.clone();
@@ -40,14 +52,7 @@ fn ab_plate_prints_the_original_unchanged_and_a_supported_copy() {
     let dir = tempfile::tempdir().unwrap();
     let input = common::sample("tri_overhang_prusa_rel.gcode");
     let out = dir.path().join("ab.gcode");
-    let o = poa()
-        .arg("ab")
-        .arg(&input)
-        .arg("-o")
-        .arg(&out)
-        .args(["--offset", "60,0"])
-        .output()
-        .unwrap();
+    let o = ab(&input, &out, &["--offset", "60,0"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 
     let before: Vec<Layer> = common::all_layers(&std::fs::read(&input).unwrap())
@@ -136,14 +141,7 @@ fn ab_refuses_a_copy_off_the_bed_or_on_the_part() {
     let input = common::sample("tri_overhang_prusa_rel.gcode");
     for offset in ["300,0", "0,-150", "5,0"] {
         let out = dir.path().join("ab.gcode");
-        let o = poa()
-            .arg("ab")
-            .arg(&input)
-            .arg("-o")
-            .arg(&out)
-            .args(["--offset", offset])
-            .output()
-            .unwrap();
+        let o = ab(&input, &out, &["--offset", offset]);
         assert_eq!(o.status.code(), Some(1), "{offset}");
         let err = String::from_utf8_lossy(&o.stderr);
         assert!(
@@ -161,14 +159,11 @@ fn ab_refuses_a_copy_off_the_bed_or_on_the_part() {
 fn ab_with_klipper_labels_defines_and_names_every_copy() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("ab.gcode");
-    let o = poa()
-        .arg("ab")
-        .arg(common::sample("klipper_objects.gcode"))
-        .arg("-o")
-        .arg(&out)
-        .args(["--offset", "0,30", "--bed", "0,0,250,210"])
-        .output()
-        .unwrap();
+    let o = ab(
+        &common::sample("klipper_objects.gcode"),
+        &out,
+        &["--offset", "0,30", "--bed", "0,0,250,210"],
+    );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let data = std::fs::read(&out).unwrap();
     let text = String::from_utf8_lossy(&data);
@@ -206,14 +201,11 @@ fn ab_with_klipper_labels_defines_and_names_every_copy() {
 fn ab_handles_cura_labels_and_refuses_inches() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("ab.gcode");
-    let o = poa()
-        .arg("ab")
-        .arg(common::sample("rect_overhang_cura.gcode"))
-        .arg("-o")
-        .arg(&out)
-        .args(["--offset", "80,0", "--bed", "0,0,300,300"])
-        .output()
-        .unwrap();
+    let o = ab(
+        &common::sample("rect_overhang_cura.gcode"),
+        &out,
+        &["--offset", "80,0", "--bed", "0,0,300,300"],
+    );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let stdout = String::from_utf8_lossy(&o.stdout);
     assert!(
@@ -228,14 +220,11 @@ fn ab_handles_cura_labels_and_refuses_inches() {
     );
 
     let out = dir.path().join("inch.gcode");
-    let o = poa()
-        .arg("ab")
-        .arg(common::sample("inches_g20.gcode"))
-        .arg("-o")
-        .arg(&out)
-        .args(["--offset", "80,0", "--bed", "0,0,300,300"])
-        .output()
-        .unwrap();
+    let o = ab(
+        &common::sample("inches_g20.gcode"),
+        &out,
+        &["--offset", "80,0", "--bed", "0,0,300,300"],
+    );
     assert_eq!(o.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&o.stderr).contains("inches"));
     assert!(!out.exists());
