@@ -135,6 +135,28 @@ pub fn intersection(a: &MultiPolygon<f64>, b: &MultiPolygon<f64>) -> MultiPolygo
     geo::BooleanOps::intersection(a, b)
 }
 
+/// The polygons of `mp` whose bounding box comes within `margin` of `rect`.
+///
+/// Booleans and point tests cost in proportion to every vertex they are given; a region of
+/// a plate of many parts only needs the parts around it.
+pub fn near(mp: &MultiPolygon<f64>, rect: &geo::Rect<f64>, margin: f64) -> MultiPolygon<f64> {
+    use geo::BoundingRect;
+    let (lo, hi) = (rect.min(), rect.max());
+    MultiPolygon::new(
+        mp.0.iter()
+            .filter(|p| {
+                p.bounding_rect().is_some_and(|b| {
+                    b.min().x <= hi.x + margin
+                        && b.max().x >= lo.x - margin
+                        && b.min().y <= hi.y + margin
+                        && b.max().y >= lo.y - margin
+                })
+            })
+            .cloned()
+            .collect(),
+    )
+}
+
 /// A polygon's exterior as a polygon without holes.
 pub fn exterior_only(p: &Polygon<f64>) -> Polygon<f64> {
     Polygon::new(p.exterior().clone(), Vec::new())
@@ -178,6 +200,20 @@ mod tests {
         let shrunk = offset(&sq, -1.0);
         assert!((shrunk.unsigned_area() - 64.0).abs() < 1e-6);
         assert!(offset(&sq, -6.0).0.is_empty());
+    }
+
+    #[test]
+    fn near_keeps_the_polygons_around_a_box() {
+        let set = mp(vec![
+            rect(0.0, 0.0, 1.0, 1.0),
+            rect(5.0, 0.0, 6.0, 1.0),
+            rect(20.0, 20.0, 21.0, 21.0),
+        ]);
+        let b = geo::Rect::new(geo::coord! {x: 2.0, y: 0.0}, geo::coord! {x: 3.0, y: 1.0});
+        assert_eq!(near(&set, &b, 0.5).0.len(), 0);
+        let kept = near(&set, &b, 2.0);
+        assert_eq!(kept.0.len(), 2);
+        assert!((kept.unsigned_area() - 2.0).abs() < 1e-9);
     }
 
     #[test]

@@ -14,15 +14,16 @@
 //! no region: the slicer's own overhang perimeters print it.
 
 use geo::{
-    Area, BooleanOps, BoundingRect, Contains, Distance, Euclidean, LineString, MultiLineString,
-    MultiPolygon, Point, Polygon,
+    coord, Area, BooleanOps, BoundingRect, Contains, Line, LineString, MultiLineString,
+    MultiPolygon, Point, Polygon, Rect,
 };
+use rstar::{PointDistance, RTree};
 use serde::Serialize;
 
 use crate::layers::{Layer, Role};
 
 use super::area::AreaOptions;
-use super::{offset, opening};
+use super::{near, offset, opening};
 
 /// How far from the layer below a point may be and still count as supported.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -148,11 +149,18 @@ pub fn find_regions(
         return Vec::new();
     }
     let kept = opening(&raw, opts.min_width() / 2.0);
-    let anchor_zone = offset(below, tol + ANCHOR_SLACK);
-    kept.0
+    let kept: Vec<Polygon<f64>> = kept
+        .0
         .into_iter()
         .filter(|p| p.unsigned_area() >= opts.min_area)
-        .map(|polygon| describe(polygon, below, &anchor_zone, layer, opts))
+        .collect();
+    if kept.is_empty() {
+        return Vec::new();
+    }
+    let anchor_zone = offset(below, tol + ANCHOR_SLACK);
+    let boxes: Vec<Option<Rect<f64>>> = layer.paths.iter().map(path_box).collect();
+    kept.into_iter()
+        .map(|polygon| describe(polygon, below, &anchor_zone, layer, &boxes, opts))
         .collect()
 }
 
@@ -161,13 +169,19 @@ fn describe(
     below: &MultiPolygon<f64>,
     anchor_zone: &MultiPolygon<f64>,
     layer: &Layer,
+    boxes: &[Option<Rect<f64>>],
     opts: &DetectOptions,
 ) -> Region {
     let min_stretch = opts.min_width();
+    // Boundary samples can only fall in zone polygons whose box meets the region's.
+    let anchor_zone = match polygon.bounding_rect() {
+        Some(b) => near(anchor_zone, &b, 0.0),
+        None => MultiPolygon::new(Vec::new()),
+    };
     let mut anchors = 0;
     let mut anchored_length = 0.0;
     for ring in std::iter::once(polygon.exterior()).chain(polygon.interiors()) {
-        let (n, len) = anchored_stretches(ring, anchor_zone, min_stretch);
+        let (n, len) = anchored_stretches(ring, &anchor_zone, min_stretch);
         anchors += n;
         anchored_length += len;
     }
@@ -176,7 +190,7 @@ fn describe(
         1 => RegionKind::Overhang,
         _ => RegionKind::Bridge,
     };
-    let (extrusions, object) = extrusions_inside(&polygon, layer);
+    let (extrusions, object) = extrusions_inside(&polygon, layer, boxes);
     Region {
         layer: layer.index,
         z: layer.z,
@@ -239,35 +253,45 @@ fn anchored_stretches(
 /// Largest distance from the region to `below`, sampled at the region's vertices and on a
 /// grid inside it.
 fn max_distance(polygon: &Polygon<f64>, below: &MultiPolygon<f64>) -> f64 {
-    if below.0.is_empty() {
+    let Some(rb) = polygon.bounding_rect() else {
+        return 0.0;
+    };
+    // Any one point of `below` bounds every distance from the region's box; a polygon whose
+    // box lies farther than that bound from the region's box cannot hold a nearest point.
+    let Some(v) = below.0.iter().find_map(|q| q.exterior().0.first()) else {
         return f64::INFINITY;
-    }
-    let boxes: Vec<_> = below
+    };
+    let bound = [
+        rb.min(),
+        rb.max(),
+        coord! {x: rb.min().x, y: rb.max().y},
+        coord! {x: rb.max().x, y: rb.min().y},
+    ]
+    .iter()
+    .map(|c| (c.x - v.x).hypot(c.y - v.y))
+    .fold(0.0, f64::max);
+    let below = near(below, &rb, bound);
+    // The region lies outside `below` (it is what is left after taking `below` grown away),
+    // so a point's distance to `below` is its distance to the nearest edge of its rings.
+    let edges: Vec<Line<f64>> = below
         .0
         .iter()
-        .filter_map(|q| q.bounding_rect().map(|b| (b, q)))
+        .flat_map(|q| std::iter::once(q.exterior()).chain(q.interiors()))
+        .flat_map(|r| r.lines())
         .collect();
-    // Nearest polygon first by bounding box; a box farther than the best distance so far
-    // cannot hold anything nearer.
+    if edges.is_empty() {
+        return f64::INFINITY;
+    }
+    let tree = RTree::bulk_load(edges);
     let dist = |p: &Point<f64>| {
-        let mut best = f64::INFINITY;
-        for (b, q) in &boxes {
-            let dx = (b.min().x - p.x()).max(p.x() - b.max().x).max(0.0);
-            let dy = (b.min().y - p.y()).max(p.y() - b.max().y).max(0.0);
-            if (dx * dx + dy * dy).sqrt() >= best {
-                continue;
-            }
-            best = best.min(Euclidean.distance(p, *q));
-        }
-        best
+        tree.nearest_neighbor(p)
+            .map_or(f64::INFINITY, |l| l.distance_2(p).sqrt())
     };
     let mut best: f64 = 0.0;
     for c in polygon.exterior().0.iter() {
         best = best.max(dist(&Point::from(*c)));
     }
-    let Some(b) = polygon.bounding_rect() else {
-        return best;
-    };
+    let b = rb;
     // A coarse grid, then finer grids around the best point so far.
     let mut step = (b.width().max(b.height()) / 30.0).max(0.1);
     let (mut x0, mut y0, mut x1, mut y1) = (b.min().x, b.min().y, b.max().x, b.max().y);
@@ -296,21 +320,40 @@ fn max_distance(polygon: &Polygon<f64>, below: &MultiPolygon<f64>) -> f64 {
     best
 }
 
+fn path_box(p: &crate::layers::Path) -> Option<Rect<f64>> {
+    let first = p.points.first()?;
+    let (mut lo, mut hi) = (*first, *first);
+    for q in &p.points {
+        lo = [lo[0].min(q[0]), lo[1].min(q[1])];
+        hi = [hi[0].max(q[0]), hi[1].max(q[1])];
+    }
+    Some(Rect::new(
+        coord! {x: lo[0], y: lo[1]},
+        coord! {x: hi[0], y: hi[1]},
+    ))
+}
+
 /// Length and filament of the layer's extrusions inside `polygon`, by role, and the object
 /// with the most length inside.
-fn extrusions_inside(polygon: &Polygon<f64>, layer: &Layer) -> (Vec<RoleExtrusion>, Option<u32>) {
+fn extrusions_inside(
+    polygon: &Polygon<f64>,
+    layer: &Layer,
+    boxes: &[Option<Rect<f64>>],
+) -> (Vec<RoleExtrusion>, Option<u32>) {
     let Some(bb) = polygon.bounding_rect() else {
         return (Vec::new(), None);
     };
     let region = MultiPolygon::new(vec![polygon.clone()]);
     let mut by_role: Vec<(Role, f64, f64)> = Vec::new();
     let mut by_object: Vec<(Option<u32>, f64)> = Vec::new();
-    for p in &layer.paths {
-        let outside = p.points.iter().all(|q| q[0] < bb.min().x)
-            || p.points.iter().all(|q| q[0] > bb.max().x)
-            || p.points.iter().all(|q| q[1] < bb.min().y)
-            || p.points.iter().all(|q| q[1] > bb.max().y);
-        if outside || p.points.len() < 2 {
+    for (p, pb) in layer.paths.iter().zip(boxes) {
+        let meets = pb.is_some_and(|pb| {
+            pb.min().x <= bb.max().x
+                && pb.max().x >= bb.min().x
+                && pb.min().y <= bb.max().y
+                && pb.max().y >= bb.min().y
+        });
+        if !meets || p.points.len() < 2 {
             continue;
         }
         let line = LineString::from(p.points.iter().map(|q| (q[0], q[1])).collect::<Vec<_>>());

@@ -19,8 +19,8 @@ use geo::{Area, MultiPolygon};
 use serde::Serialize;
 
 use crate::geometry::{
-    clip_lines, difference, grow_within, intersection, offset, opening, rings, union, Polyline,
-    Region, RegionKind,
+    clip_lines, difference, grow_within, intersection, near, offset, opening, rings, union,
+    Polyline, Region, RegionKind,
 };
 
 /// What to do with regions anchored on two or more sides.
@@ -157,8 +157,13 @@ pub fn plan(
     // point lies there), sectB a little beyond it.
     let region_mp = MultiPolygon::new(vec![region.polygon.clone()]);
     let hint = offset(&region_mp, widths.tolerance + w);
-    let below_loc = intersection(below, &offset(&hint, reach + w));
-    let area_loc = intersection(area, &offset(&hint, 2.0 * we + 2.0));
+    // Booleans with a whole plate's layer cost as much as the plate: take the parts near by.
+    let (below, area) = match geo::BoundingRect::bounding_rect(&hint) {
+        Some(b) => (near(below, &b, reach + w), near(area, &b, 2.0 * we + 2.0)),
+        None => (MultiPolygon::new(Vec::new()), MultiPolygon::new(Vec::new())),
+    };
+    let below_loc = intersection(&below, &offset(&hint, reach + w));
+    let area_loc = intersection(&area, &offset(&hint, 2.0 * we + 2.0));
 
     // The zone: what sectB prints beyond sectA around this region, slivers dropped.
     let zone = opening(
