@@ -314,6 +314,7 @@ impl DetectArgs {
 }
 
 fn main() -> ExitCode {
+    bound_heap();
     let cli = Cli::parse();
     match run(cli) {
         Ok(code) => code,
@@ -758,6 +759,19 @@ fn parse_time(text: Option<&str>) -> Option<f64> {
 /// Whether the rewrite added time before progress lines that should show it.
 fn needs_progress_update(report: &ProcessReport, args: &RewriteArgs) -> bool {
     !args.keep_progress && report.has_progress_lines && !report.progress.is_empty()
+}
+
+/// glibc raises its mmap threshold each time a large block is freed, after which the
+/// megabyte-sized buffers of a big plate's layers come from the heap and their memory stays
+/// with the process when freed. A fixed threshold keeps them mapped and handed back, so
+/// peak memory follows what the pipeline holds, not what it once held.
+fn bound_heap() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: mallopt only changes allocator tunables; called before any thread starts.
+    unsafe {
+        libc::mallopt(libc::M_MMAP_THRESHOLD, 256 * 1024);
+        libc::mallopt(libc::M_TRIM_THRESHOLD, 1024 * 1024);
+    }
 }
 
 /// Rewrites one file into `dest` (which may be the file itself). Returns `None` when the file

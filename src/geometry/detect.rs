@@ -14,9 +14,11 @@ use crate::layers::{Layer, LayerKind};
 
 use super::{find_regions, printed_area, DetectOptions, Region};
 
-/// Layers per parallel batch: enough to keep two cores busy, few enough to keep memory flat
-/// (a layer of a big plate holds megabytes of strands).
+/// Layers per parallel batch: enough to keep two cores busy, few enough to keep memory flat.
 const BATCH: usize = 4;
+/// A batch also ends once its layers weigh this much ([`weight`]): a layer of a big plate
+/// holds megabytes of strands, and two of them keep two cores busy.
+const BATCH_BYTES: usize = 6 << 20;
 
 /// One block of the file with what detection found.
 pub struct Detected {
@@ -30,6 +32,42 @@ pub struct Detected {
 
 /// Layers read ahead of the geometry: the next batch, read while one is computed.
 const READ_AHEAD: usize = BATCH;
+/// ... and no more than this much of them ([`weight`]), so that peak memory stays flat
+/// however big a plate's layers are.
+const READ_AHEAD_BYTES: usize = 3 << 20;
+
+/// Bytes a layer holds: its raw text and, per segment, a point, a line number and an E.
+pub fn weight(layer: &Layer) -> usize {
+    layer.raw.len()
+        + layer
+            .paths
+            .iter()
+            .map(|p| p.points.len() * 32)
+            .sum::<usize>()
+}
+
+/// Bytes in flight between the reader and the work, capped at [`READ_AHEAD_BYTES`]: the
+/// reader waits before sending a layer that would go over, unless nothing is in flight.
+struct Budget {
+    used: std::sync::Mutex<usize>,
+    freed: std::sync::Condvar,
+}
+
+impl Budget {
+    fn take(&self, n: usize) {
+        let mut used = self.used.lock().unwrap_or_else(|e| e.into_inner());
+        while *used > 0 && *used + n > READ_AHEAD_BYTES {
+            used = self.freed.wait(used).unwrap_or_else(|e| e.into_inner());
+        }
+        *used += n;
+    }
+
+    fn give(&self, n: usize) {
+        let mut used = self.used.lock().unwrap_or_else(|e| e.into_inner());
+        *used = used.saturating_sub(n);
+        self.freed.notify_all();
+    }
+}
 
 /// Runs detection over `layers`, calling `sink` for each block in order.
 ///
@@ -51,19 +89,37 @@ where
     I: Iterator<Item = io::Result<Layer>> + Send,
     W: FnOnce(&mut dyn Iterator<Item = io::Result<Layer>>) -> io::Result<T>,
 {
+    let budget = Budget {
+        used: std::sync::Mutex::new(0),
+        freed: std::sync::Condvar::new(),
+    };
+    let budget = &budget;
     std::thread::scope(|s| {
-        let (tx, rx) = std::sync::mpsc::sync_channel::<io::Result<Layer>>(READ_AHEAD);
+        let (tx, rx) = std::sync::mpsc::sync_channel::<(io::Result<Layer>, usize)>(READ_AHEAD);
         s.spawn(move || {
             for l in layers {
                 let failed = l.is_err();
+                let w = l.as_ref().map_or(0, weight);
+                budget.take(w);
                 // A closed channel means the work stopped (an error downstream): stop too.
-                if tx.send(l).is_err() || failed {
+                if tx.send((l, w)).is_err() || failed {
                     break;
                 }
             }
         });
-        // `rx` is dropped on return, which releases a reader blocked on a full channel.
-        let mut it = rx.into_iter();
+        // `rx` is dropped on return, which releases a reader blocked on a full channel; the
+        // guard frees the budget so that a reader waiting on it finds the channel closed.
+        struct Release<'a>(&'a Budget);
+        impl Drop for Release<'_> {
+            fn drop(&mut self) {
+                self.0.give(usize::MAX);
+            }
+        }
+        let _release = Release(budget);
+        let mut it = rx.into_iter().map(|(l, w)| {
+            budget.give(w);
+            l
+        });
         work(&mut it)
     })
 }
@@ -75,16 +131,19 @@ where
 {
     let mut below = MultiPolygon::new(Vec::new());
     let mut batch: Vec<Layer> = Vec::with_capacity(BATCH);
+    let mut batch_bytes = 0;
     let mut layers = layers.peekable();
     loop {
         let next = layers.next().transpose()?;
         let end = next.is_none();
         if let Some(l) = next {
+            batch_bytes += weight(&l);
             batch.push(l);
         }
-        if batch.len() < BATCH && !end {
+        if batch.len() < BATCH && batch_bytes < BATCH_BYTES && !end {
             continue;
         }
+        batch_bytes = 0;
         let areas: Vec<MultiPolygon<f64>> = batch
             .par_iter()
             .map(|l| match l.kind {
@@ -124,5 +183,56 @@ where
         if end {
             return Ok(());
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn layer(index: usize, raw_bytes: usize) -> Layer {
+        Layer {
+            kind: LayerKind::Layer,
+            index,
+            marker_number: None,
+            z: 0.2 * (index + 1) as f64,
+            height: 0.2,
+            paths: Vec::new(),
+            first_line: 1,
+            last_line: 0,
+            raw: vec![b';'; raw_bytes],
+            start: None,
+            objects: None,
+        }
+    }
+
+    #[test]
+    fn layers_heavier_than_the_budget_still_arrive_in_order() {
+        let big = READ_AHEAD_BYTES + 1;
+        let layers = (0..6).map(|i| Ok(layer(i, big)));
+        let got: Vec<usize> =
+            read_ahead(layers, |it| it.map(|l| l.map(|l| l.index)).collect()).unwrap();
+        assert_eq!(got, vec![0, 1, 2, 3, 4, 5]);
+    }
+
+    #[test]
+    fn work_that_stops_early_releases_a_waiting_reader() {
+        let big = READ_AHEAD_BYTES / 2;
+        let layers = (0..100).map(|i| Ok(layer(i, big)));
+        let first = read_ahead(layers, |it| Ok(it.next().unwrap()?.index)).unwrap();
+        assert_eq!(first, 0);
+    }
+
+    #[test]
+    fn a_read_error_ends_the_stream() {
+        let layers = (0..5).map(|i| {
+            if i == 2 {
+                Err(io::Error::other("bad"))
+            } else {
+                Ok(layer(i, 10))
+            }
+        });
+        let got: Vec<bool> = read_ahead(layers, |it| Ok(it.map(|l| l.is_ok()).collect())).unwrap();
+        assert_eq!(got, vec![true, true, false]);
     }
 }
