@@ -47,42 +47,60 @@ impl Default for AreaOptions {
 /// Join and cap arcs: segment length / radius (radians).
 const ROUND_ANGLE: f64 = 0.35;
 
+/// The centerlines a footprint is buffered from, by width: everything a footprint depends
+/// on. Two layers with equal `Strands` (a vertical wall repeats its perimeters exactly) have
+/// the same footprint, computed once.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Strands(BTreeMap<i64, Vec<LineString<f64>>>);
+
+impl Strands {
+    pub fn of<'a>(paths: impl IntoIterator<Item = &'a Path>) -> Strands {
+        // One buffer call per width: geo buffers a MultiLineString at one distance.
+        let mut by_width: BTreeMap<i64, Vec<LineString<f64>>> = BTreeMap::new();
+        for p in paths {
+            if p.points.len() < 2 || !(p.width > 0.0 && p.width < 50.0) {
+                continue;
+            }
+            let mut pts: Vec<geo::Coord<f64>> = Vec::with_capacity(p.points.len());
+            for q in &p.points {
+                let c = coord! {x: q[0], y: q[1]};
+                if pts.last().is_none_or(|l: &geo::Coord<f64>| {
+                    (l.x - c.x).abs() > 1e-7 || (l.y - c.y).abs() > 1e-7
+                }) {
+                    pts.push(c);
+                }
+            }
+            if pts.len() < 2 {
+                continue;
+            }
+            let key = (p.width * 1000.0).round() as i64;
+            by_width.entry(key).or_default().push(LineString::new(pts));
+        }
+        Strands(by_width)
+    }
+
+    /// Union of the strands' footprints (centerline buffered by width / 2, round caps and
+    /// joins).
+    pub fn buffer(&self) -> MultiPolygon<f64> {
+        let mut parts: Vec<MultiPolygon<f64>> = Vec::new();
+        for (key, lines) in &self.0 {
+            let half = *key as f64 / 2000.0;
+            let style = BufferStyle::new(half)
+                .line_cap(LineCap::Round(ROUND_ANGLE))
+                .line_join(LineJoin::Round(ROUND_ANGLE));
+            parts.push(MultiLineString::new(lines.clone()).buffer_with_style(style));
+        }
+        match parts.len() {
+            0 => MultiPolygon::new(Vec::new()),
+            1 => parts.pop().unwrap_or_else(|| MultiPolygon::new(Vec::new())),
+            _ => unary_union(parts.iter().flat_map(|m| m.0.iter())),
+        }
+    }
+}
+
 /// Union of the strands' footprints (centerline buffered by width / 2, round caps and joins).
 pub fn footprint<'a>(paths: impl IntoIterator<Item = &'a Path>) -> MultiPolygon<f64> {
-    // One buffer call per width: geo buffers a MultiLineString at one distance.
-    let mut by_width: BTreeMap<i64, Vec<LineString<f64>>> = BTreeMap::new();
-    for p in paths {
-        if p.points.len() < 2 || !(p.width > 0.0 && p.width < 50.0) {
-            continue;
-        }
-        let mut pts: Vec<geo::Coord<f64>> = Vec::with_capacity(p.points.len());
-        for q in &p.points {
-            let c = coord! {x: q[0], y: q[1]};
-            if pts.last().is_none_or(|l: &geo::Coord<f64>| {
-                (l.x - c.x).abs() > 1e-7 || (l.y - c.y).abs() > 1e-7
-            }) {
-                pts.push(c);
-            }
-        }
-        if pts.len() < 2 {
-            continue;
-        }
-        let key = (p.width * 1000.0).round() as i64;
-        by_width.entry(key).or_default().push(LineString::new(pts));
-    }
-    let mut parts: Vec<MultiPolygon<f64>> = Vec::new();
-    for (key, lines) in by_width {
-        let half = key as f64 / 2000.0;
-        let style = BufferStyle::new(half)
-            .line_cap(LineCap::Round(ROUND_ANGLE))
-            .line_join(LineJoin::Round(ROUND_ANGLE));
-        parts.push(MultiLineString::new(lines).buffer_with_style(style));
-    }
-    match parts.len() {
-        0 => MultiPolygon::new(Vec::new()),
-        1 => parts.pop().unwrap_or_else(|| MultiPolygon::new(Vec::new())),
-        _ => unary_union(parts.iter().flat_map(|m| m.0.iter())),
-    }
+    Strands::of(paths).buffer()
 }
 
 /// Strands that hold up the layer above: the part and its support, not skirt or priming.
@@ -118,59 +136,99 @@ fn midpoints(layer: &Layer, keep: impl Fn(Role) -> bool) -> Vec<[f64; 2]> {
     v
 }
 
-/// The area a layer covers for the layer above, holes that are infill gaps closed.
-pub fn printed_area(layer: &Layer, opts: &AreaOptions) -> MultiPolygon<f64> {
-    let walls: Vec<&Path> = layer
+/// What a layer tells about its outline, which decides how its printed area is made.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Outline {
+    /// External perimeters told apart: holes are decided by infill and walls.
+    Walls,
+    /// Sparse infill tagged, external perimeters not told apart (Slic3r).
+    Infill,
+    /// No roles to go by.
+    Bare,
+}
+
+fn outline(layer: &Layer) -> Outline {
+    if layer
         .paths
         .iter()
-        .filter(|p| matches!(p.role, Role::ExternalPerimeter | Role::OverhangPerimeter))
-        .collect();
-    let walls_known = walls.iter().any(|p| p.role == Role::ExternalPerimeter);
-    if walls_known {
+        .any(|p| p.role == Role::ExternalPerimeter)
+    {
+        Outline::Walls
+    } else if layer.paths.iter().any(|p| p.role == Role::Infill) {
+        Outline::Infill
+    } else {
+        Outline::Bare
+    }
+}
+
+/// The strands whose footprint outlines the layer's printed area.
+pub fn outline_strands(layer: &Layer) -> Strands {
+    match outline(layer) {
         // Perimeters and the other strands outline the part; what infill fills is closed in
         // by hole filling instead of being buffered strand by strand (the costly part).
-        let inside = midpoints(layer, interior);
-        let fp = footprint(
+        Outline::Walls => Strands::of(
             layer
                 .paths
                 .iter()
                 .filter(|p| supports(p.role) && !interior(p.role)),
-        );
-        // Most layers have no hole that the infill test leaves undecided: build the wall zone
-        // only for the first one that needs it.
-        let mut wall_fp: Option<MultiPolygon<f64>> = None;
-        let area = close_holes(fp, |hole| {
-            contains_any(hole, &inside)
-                || hole_width_below(hole, opts.min_hole)
-                || !walled_by(hole, wall_fp.get_or_insert_with(|| wall_zone(&walls)))
-        });
-        // Infill the perimeters do not enclose (a slicer setting without perimeters somewhere)
-        // still holds up the layer above.
-        let stray: Vec<&Path> = layer
-            .paths
-            .iter()
-            .filter(|p| interior(p.role) && !path_inside(p, &area))
-            .collect();
-        if stray.is_empty() {
-            area
-        } else {
-            BooleanOps::union(&area, &footprint(stray))
-        }
-    } else if layer.paths.iter().any(|p| p.role == Role::Infill) {
-        // Sparse infill tagged, external perimeters not told apart (Slic3r).
-        let infill = midpoints(layer, |r| r == Role::Infill);
-        let fp = footprint(
+        ),
+        Outline::Infill => Strands::of(
             layer
                 .paths
                 .iter()
                 .filter(|p| supports(p.role) && p.role != Role::Infill),
-        );
-        close_holes(fp, |hole| {
-            contains_any(hole, &infill) || hole_width_below(hole, opts.min_hole)
-        })
-    } else {
-        let fp = footprint(layer.paths.iter().filter(|p| supports(p.role)));
-        close_holes(fp, |hole| hole_width_below(hole, opts.gap_close))
+        ),
+        Outline::Bare => Strands::of(layer.paths.iter().filter(|p| supports(p.role))),
+    }
+}
+
+/// The area a layer covers for the layer above, holes that are infill gaps closed.
+pub fn printed_area(layer: &Layer, opts: &AreaOptions) -> MultiPolygon<f64> {
+    area_from_footprint(layer, outline_strands(layer).buffer(), opts)
+}
+
+/// [`printed_area`] from the footprint of the layer's [`outline_strands`].
+pub fn area_from_footprint(
+    layer: &Layer,
+    fp: MultiPolygon<f64>,
+    opts: &AreaOptions,
+) -> MultiPolygon<f64> {
+    match outline(layer) {
+        Outline::Walls => {
+            let walls: Vec<&Path> = layer
+                .paths
+                .iter()
+                .filter(|p| matches!(p.role, Role::ExternalPerimeter | Role::OverhangPerimeter))
+                .collect();
+            let inside = midpoints(layer, interior);
+            // Most layers have no hole that the infill test leaves undecided: build the wall
+            // zone only for the first one that needs it.
+            let mut wall_fp: Option<MultiPolygon<f64>> = None;
+            let area = close_holes(fp, |hole| {
+                contains_any(hole, &inside)
+                    || hole_width_below(hole, opts.min_hole)
+                    || !walled_by(hole, wall_fp.get_or_insert_with(|| wall_zone(&walls)))
+            });
+            // Infill the perimeters do not enclose (a slicer setting without perimeters
+            // somewhere) still holds up the layer above.
+            let stray: Vec<&Path> = layer
+                .paths
+                .iter()
+                .filter(|p| interior(p.role) && !path_inside(p, &area))
+                .collect();
+            if stray.is_empty() {
+                area
+            } else {
+                BooleanOps::union(&area, &footprint(stray))
+            }
+        }
+        Outline::Infill => {
+            let infill = midpoints(layer, |r| r == Role::Infill);
+            close_holes(fp, |hole| {
+                contains_any(hole, &infill) || hole_width_below(hole, opts.min_hole)
+            })
+        }
+        Outline::Bare => close_holes(fp, |hole| hole_width_below(hole, opts.gap_close)),
     }
 }
 

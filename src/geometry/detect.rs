@@ -12,7 +12,8 @@ use rayon::prelude::*;
 
 use crate::layers::{Layer, LayerKind};
 
-use super::{find_regions, printed_area, DetectOptions, Region};
+use super::area::{area_from_footprint, outline_strands, Strands};
+use super::{find_regions, DetectOptions, Region};
 
 /// Layers per parallel batch: enough to keep two cores busy, few enough to keep memory flat.
 const BATCH: usize = 4;
@@ -130,6 +131,7 @@ where
     F: FnMut(Detected) -> io::Result<()>,
 {
     let mut below = MultiPolygon::new(Vec::new());
+    let mut last: Option<(Strands, MultiPolygon<f64>)> = None;
     let mut batch: Vec<Layer> = Vec::with_capacity(BATCH);
     let mut batch_bytes = 0;
     let mut layers = layers.peekable();
@@ -144,13 +146,7 @@ where
             continue;
         }
         batch_bytes = 0;
-        let areas: Vec<MultiPolygon<f64>> = batch
-            .par_iter()
-            .map(|l| match l.kind {
-                LayerKind::Layer => printed_area(l, &opts.area),
-                LayerKind::Preamble => MultiPolygon::new(Vec::new()),
-            })
-            .collect();
+        let areas = batch_areas(&batch, &mut last, opts);
         let mut belows = Vec::with_capacity(batch.len());
         for (l, a) in batch.iter().zip(&areas) {
             belows.push(below.clone());
@@ -184,6 +180,65 @@ where
             return Ok(());
         }
     }
+}
+
+/// Printed areas of a batch. A wall that rises straight repeats its outline strands exactly,
+/// layer after layer; their footprint (the costly buffer) is computed once and reused, the
+/// last one carried into the next batch.
+fn batch_areas(
+    batch: &[Layer],
+    last: &mut Option<(Strands, MultiPolygon<f64>)>,
+    opts: &DetectOptions,
+) -> Vec<MultiPolygon<f64>> {
+    let strands: Vec<Option<Strands>> = batch
+        .par_iter()
+        .map(|l| (l.kind == LayerKind::Layer).then(|| outline_strands(l)))
+        .collect();
+    // Index of the layer whose footprint each layer shares (itself when fresh); usize::MAX
+    // for the footprint carried in from the previous batch.
+    let mut source: Vec<Option<usize>> = Vec::with_capacity(batch.len());
+    let mut prev: Option<(usize, &Strands)> = last.as_ref().map(|(s, _)| (usize::MAX, s));
+    for (i, s) in strands.iter().enumerate() {
+        match s {
+            None => source.push(None),
+            Some(s) => match prev {
+                Some((j, p)) if p == s => source.push(Some(j)),
+                _ => {
+                    source.push(Some(i));
+                    prev = Some((i, s));
+                }
+            },
+        }
+    }
+    let fresh: Vec<Option<MultiPolygon<f64>>> = strands
+        .par_iter()
+        .enumerate()
+        .map(|(i, s)| match s {
+            Some(s) if source[i] == Some(i) => Some(s.buffer()),
+            _ => None,
+        })
+        .collect();
+    let footprint_of = |i: usize| -> Option<&MultiPolygon<f64>> {
+        match source[i]? {
+            usize::MAX => last.as_ref().map(|(_, fp)| fp),
+            j => fresh[j].as_ref(),
+        }
+    };
+    let areas: Vec<MultiPolygon<f64>> = batch
+        .par_iter()
+        .enumerate()
+        .map(|(i, l)| match footprint_of(i) {
+            Some(fp) => area_from_footprint(l, fp.clone(), &opts.area),
+            None => MultiPolygon::new(Vec::new()),
+        })
+        .collect();
+    if let Some(i) = source.iter().rposition(Option::is_some) {
+        let fp = footprint_of(i).cloned();
+        if let (Some(s), Some(fp)) = (strands.into_iter().nth(i).flatten(), fp) {
+            *last = Some((s, fp));
+        }
+    }
+    areas
 }
 
 #[cfg(test)]

@@ -135,7 +135,9 @@ pub fn find_regions(
     here: &MultiPolygon<f64>,
     opts: &DetectOptions,
 ) -> Vec<Region> {
-    if here.0.is_empty() {
+    // A layer that covers exactly what the one below covered (a straight wall, its footprint
+    // shared) has nothing over air: skip the offsets and booleans.
+    if here.0.is_empty() || here == below {
         return Vec::new();
     }
     let tol = opts.tolerance_at(layer.height);
