@@ -961,7 +961,7 @@ pub fn process<R: BufRead + Send, W: Write>(
     let mut next_id = 0usize;
     let mut names: Vec<String> = Vec::new();
     crate::geometry::detect(reader.by_ref(), &opts.detect, |d| {
-        let layer = d.layer;
+        let mut layer = d.layer;
         if let Some(n) = &layer.objects {
             names.clone_from(n);
         }
@@ -1028,8 +1028,8 @@ pub fn process<R: BufRead + Send, W: Write>(
                 rewrites.push(RegionRewrite { id, kind, plan });
             }
         }
-        let bytes = if rewrites.is_empty() {
-            std::borrow::Cow::Borrowed(&layer.raw)
+        let rewritten = if rewrites.is_empty() {
+            None
         } else {
             let (bytes, mut stats) = rewrite_layer(&layer, &rewrites, &motion, &opts.settings);
             let added =
@@ -1055,8 +1055,11 @@ pub fn process<R: BufRead + Send, W: Write>(
                 report.time_added_s += s.time_added_s;
                 report.rewrites.push(s);
             }
-            std::borrow::Cow::Owned(bytes)
+            Some(bytes)
         };
+        limits.track_limits(&layer.raw);
+        // A layer passed through is moved to the output, not copied.
+        let bytes = rewritten.unwrap_or_else(|| std::mem::take(&mut layer.raw));
         let block = if !header_written && !bytes.is_empty() {
             header_written = true;
             // After the first line: some tools read the slicer's name from line 1.
@@ -1074,9 +1077,8 @@ pub fn process<R: BufRead + Send, W: Write>(
             b.extend_from_slice(&bytes[first..]);
             b
         } else {
-            bytes.into_owned()
+            bytes
         };
-        limits.track_limits(&layer.raw);
         report.has_progress_lines |= has_progress_line(&block);
         emitted += block.len() as u64;
         if let Some(last) = report.progress.last_mut().filter(|a| a.offset == 0) {

@@ -9,9 +9,9 @@
 //! Why a pass of its own: a time added late in the file changes the remaining time shown at
 //! every earlier progress line, which was already written when the addition was found.
 
-use std::io::{self, BufRead, Write};
+use std::io::{self, Read, Write};
 
-use crate::gcode::{parse_line, strip_terminator, Command, LineReader};
+use crate::gcode::{parse_line, strip_terminator, Command};
 
 /// Time a rewrite added, counted from a byte offset of the output on.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -30,41 +30,67 @@ pub struct Totals {
 
 /// Rewrites the `M73` lines of `input` into `output` for the time in `added` (sorted by
 /// offset). Returns how many lines changed.
-pub fn update<R: BufRead, W: Write>(
-    input: R,
+///
+/// The text between progress lines is copied in blocks, not line by line: this pass reads
+/// and writes the whole output a second time, so it must cost little more than a copy.
+pub fn update<R: Read, W: Write>(
+    mut input: R,
     output: &mut W,
     added: &[Added],
     totals: Totals,
 ) -> io::Result<usize> {
+    const BLOCK: usize = 1 << 20;
     let total_added: f64 = added.iter().map(|a| a.seconds).sum();
-    let mut lines = LineReader::new(input);
-    let mut buf = Vec::new();
-    let mut offset = 0u64;
+    let finder = memchr::memmem::Finder::new(b"M73");
+    let mut chunk: Vec<u8> = Vec::with_capacity(BLOCK);
+    // Offset in the input of chunk[0].
+    let mut base = 0u64;
     let mut next = 0usize;
     let mut before = 0.0;
     let mut changed = 0usize;
     // Totals from the first progress line when the footer gave none.
     let mut totals = totals;
     let mut last = [0.0; 2];
-    while lines.read_into(&mut buf)?.is_some() {
-        while next < added.len() && added[next].offset <= offset {
-            before += added[next].seconds;
-            next += 1;
-        }
-        offset += buf.len() as u64;
-        if !buf.starts_with(b"M73") {
-            output.write_all(&buf)?;
-            continue;
-        }
-        match progress_line(&buf, before, total_added, &mut totals, &mut last) {
-            Some(line) if line != buf => {
-                changed += 1;
-                output.write_all(&line)?;
+    loop {
+        let n = input.by_ref().take(BLOCK as u64).read_to_end(&mut chunk)?;
+        let eof = n == 0;
+        // Whole lines only; a line longer than a block waits for the next read.
+        let end = if eof {
+            chunk.len()
+        } else {
+            match memchr::memrchr(b'\n', &chunk) {
+                Some(i) => i + 1,
+                None => continue,
             }
-            _ => output.write_all(&buf)?,
+        };
+        let mut copied = 0;
+        for at in finder.find_iter(&chunk[..end]) {
+            if at > 0 && chunk[at - 1] != b'\n' {
+                continue;
+            }
+            let line_end = memchr::memchr(b'\n', &chunk[at..end]).map_or(end, |i| at + i + 1);
+            let offset = base + at as u64;
+            while next < added.len() && added[next].offset <= offset {
+                before += added[next].seconds;
+                next += 1;
+            }
+            let raw = &chunk[at..line_end];
+            if let Some(line) = progress_line(raw, before, total_added, &mut totals, &mut last)
+                .filter(|l| l[..] != *raw)
+            {
+                changed += 1;
+                output.write_all(&chunk[copied..at])?;
+                output.write_all(&line)?;
+                copied = line_end;
+            }
+        }
+        output.write_all(&chunk[copied..end])?;
+        chunk.drain(..end);
+        base += end as u64;
+        if eof {
+            return Ok(changed);
         }
     }
-    Ok(changed)
 }
 
 /// The line with new P/R (or Q/S) values; `None` when it is not a progress line.
@@ -177,6 +203,38 @@ mod tests {
         let mut out = Vec::new();
         update(text.as_bytes(), &mut out, added, totals).unwrap();
         String::from_utf8(out).unwrap()
+    }
+
+    /// Hands out its bytes a few at a time, as a pipe may.
+    struct Trickle<'a>(&'a [u8]);
+
+    impl Read for Trickle<'_> {
+        fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+            let n = buf.len().min(self.0.len()).min(5);
+            buf[..n].copy_from_slice(&self.0[..n]);
+            self.0 = &self.0[n..];
+            Ok(n)
+        }
+    }
+
+    #[test]
+    fn lines_split_across_reads_come_out_as_from_one_block() {
+        let text = "M73 P0 R10\nG1 X1\nM73 P50 R5 ; half\r\nG1 X2\nM73 P90 R1\nM73 P100 R0";
+        let added = [Added {
+            offset: 17,
+            seconds: 120.0,
+        }];
+        let totals = Totals {
+            normal: Some(600.0),
+            silent: None,
+        };
+        let mut out = Vec::new();
+        update(Trickle(text.as_bytes()), &mut out, &added, totals).unwrap();
+        let whole = run(text, &added, totals);
+        assert_eq!(String::from_utf8(out).unwrap(), whole);
+        assert!(whole.starts_with("M73 P0 R12\n"), "{whole}");
+        // The last line has no terminator and stays without one.
+        assert!(whole.ends_with("M73 P100 R0"), "{whole}");
     }
 
     #[test]

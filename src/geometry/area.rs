@@ -21,6 +21,9 @@ use geo::{
     LineString, MultiLineString, MultiPolygon, Orient, Point, Polygon,
 };
 
+use rstar::primitives::{GeomWithData, Rectangle};
+use rstar::RTree;
+
 use crate::layers::{Layer, Path, Role};
 
 use super::offset;
@@ -203,7 +206,7 @@ pub fn area_from_footprint(
             let inside = midpoints(layer, interior);
             // Most layers have no hole that the infill test leaves undecided: build the wall
             // zone only for the first one that needs it.
-            let mut wall_fp: Option<MultiPolygon<f64>> = None;
+            let mut wall_fp: Option<Located> = None;
             let area = close_holes(fp, |hole| {
                 contains_any(hole, &inside)
                     || hole_width_below(hole, opts.min_hole)
@@ -211,11 +214,13 @@ pub fn area_from_footprint(
             });
             // Infill the perimeters do not enclose (a slicer setting without perimeters
             // somewhere) still holds up the layer above.
+            let area = Located::new(area);
             let stray: Vec<&Path> = layer
                 .paths
                 .iter()
                 .filter(|p| interior(p.role) && !path_inside(p, &area))
                 .collect();
+            let area = area.area;
             if stray.is_empty() {
                 area
             } else {
@@ -233,24 +238,47 @@ pub fn area_from_footprint(
 }
 
 /// Whether a path's first, middle and last points lie in `area`.
-fn path_inside(p: &Path, area: &MultiPolygon<f64>) -> bool {
+fn path_inside(p: &Path, area: &Located) -> bool {
     let n = p.points.len();
     if n == 0 {
         return true;
     }
     [p.points[0], p.points[n / 2], p.points[n - 1]]
         .iter()
-        .all(|q| point_in(area, q[0], q[1]))
+        .all(|q| area.contains(q[0], q[1]))
 }
 
-/// Point in a polygon set, with a bounding-box test first.
-fn point_in(area: &MultiPolygon<f64>, x: f64, y: f64) -> bool {
-    let pt = Point::new(x, y);
-    area.0.iter().any(|poly| {
-        poly.bounding_rect()
-            .is_some_and(|b| x >= b.min().x && x <= b.max().x && y >= b.min().y && y <= b.max().y)
-            && poly.contains(&pt)
-    })
+/// A polygon set indexed by bounding box: a plate of many parts has hundreds of polygons in
+/// a layer, and each of thousands of strands asks which one holds it.
+struct Located {
+    area: MultiPolygon<f64>,
+    boxes: RTree<GeomWithData<Rectangle<[f64; 2]>, usize>>,
+}
+
+impl Located {
+    fn new(area: MultiPolygon<f64>) -> Self {
+        let boxes = area
+            .0
+            .iter()
+            .enumerate()
+            .filter_map(|(i, poly)| {
+                let b = poly.bounding_rect()?;
+                let r = Rectangle::from_corners([b.min().x, b.min().y], [b.max().x, b.max().y]);
+                Some(GeomWithData::new(r, i))
+            })
+            .collect();
+        Located {
+            area,
+            boxes: RTree::bulk_load(boxes),
+        }
+    }
+
+    fn contains(&self, x: f64, y: f64) -> bool {
+        let pt = Point::new(x, y);
+        self.boxes
+            .locate_all_at_point(&[x, y])
+            .any(|g| self.area.0[g.data].contains(&pt))
+    }
 }
 
 /// Whether any of `points` (sorted by x) lies inside the ring.
@@ -274,17 +302,17 @@ fn contains_any(hole: &LineString<f64>, points: &[[f64; 2]]) -> bool {
 }
 
 /// Where an external perimeter's inner edge can be: its footprint grown by a margin.
-fn wall_zone(walls: &[&Path]) -> MultiPolygon<f64> {
+fn wall_zone(walls: &[&Path]) -> Located {
     let fp = footprint(walls.iter().copied());
-    offset(&fp, 0.1)
+    Located::new(offset(&fp, 0.1))
 }
 
 /// Whether most of a hole's edge runs along an external perimeter.
-fn walled_by(hole: &LineString<f64>, walls: &MultiPolygon<f64>) -> bool {
+fn walled_by(hole: &LineString<f64>, walls: &Located) -> bool {
     let n = hole.0.len().saturating_sub(1).max(1);
     let on_wall = hole.0[..n]
         .iter()
-        .filter(|c| point_in(walls, c.x, c.y))
+        .filter(|c| walls.contains(c.x, c.y))
         .count();
     on_wall * 2 >= n
 }
