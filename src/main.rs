@@ -822,45 +822,37 @@ fn rewrite_file(
             })?;
             report
         }
-        (Some(dest), None) => output::write_atomic(dest, |w| {
-            emit::process(reader, opened.config, &opts, w).map_err(|e| {
-                // Reading and writing share the stream; say which side failed.
-                if e.kind() == std::io::ErrorKind::Other {
-                    read_err(e)
-                } else {
-                    printonair::Error::Write {
-                        path: dest.to_path_buf(),
-                        source: e,
+        (Some(dest), None) => output::write_atomic_twice(
+            dest,
+            |w| {
+                emit::process(reader, opened.config, &opts, w).map_err(|e| {
+                    // Reading and writing share the stream; say which side failed.
+                    if e.kind() == std::io::ErrorKind::Other {
+                        read_err(e)
+                    } else {
+                        printonair::Error::Write {
+                            path: dest.to_path_buf(),
+                            source: e,
+                        }
                     }
-                }
-            })
-        })?,
+                })
+            },
+            |report| needs_progress_update(report, args),
+            // The progress lines precede the layers that added time: a second pass over the
+            // written text gives them the new times.
+            |report, written, w| {
+                printonair::progress::update(written, w, &report.progress, totals)
+                    .map(|_| ())
+                    .map_err(|source| printonair::Error::Write {
+                        path: dest.to_path_buf(),
+                        source,
+                    })
+            },
+        )?,
         (None, _) => {
             emit::process(reader, opened.config, &opts, &mut std::io::sink()).map_err(read_err)?
         }
     };
-    if let (Some(dest), None) = (dest, &opened_binary) {
-        if needs_progress_update(&report, args) {
-            // The file is complete and valid already; a second atomic replace gives its
-            // progress lines the new times (they precede the layers that added them).
-            let written = std::fs::File::open(dest).map_err(|source| printonair::Error::Read {
-                path: dest.to_path_buf(),
-                source,
-            })?;
-            output::write_atomic(dest, |w| {
-                printonair::progress::update(
-                    std::io::BufReader::with_capacity(input::READ_BUFFER, written),
-                    w,
-                    &report.progress,
-                    totals,
-                )
-                .map_err(|source| printonair::Error::Write {
-                    path: dest.to_path_buf(),
-                    source,
-                })
-            })?;
-        }
-    }
     if args.verbose {
         let mut t = String::new();
         for s in &report.rewrites {

@@ -48,31 +48,58 @@ pub fn write_atomic<T>(
     dest: &Path,
     write: impl FnOnce(&mut BufWriter<File>) -> Result<T>,
 ) -> Result<T> {
+    write_atomic_twice(dest, write, |_| false, |_, _, _| Ok(()))
+}
+
+/// [`write_atomic`] with an optional second pass over what the first wrote (numbers that
+/// depend on the whole file): when `again` says so, `rewrite` reads the first temporary file
+/// and writes a second, which alone is synced and renamed. The destination is replaced once.
+pub fn write_atomic_twice<T>(
+    dest: &Path,
+    write: impl FnOnce(&mut BufWriter<File>) -> Result<T>,
+    again: impl FnOnce(&T) -> bool,
+    rewrite: impl FnOnce(&T, File, &mut BufWriter<File>) -> Result<()>,
+) -> Result<T> {
     remove_stale_temps(dest);
-    let tmp = temp_path(dest);
+    let first = temp_path(dest);
+    // Same prefix: a killed run's second file is cleaned up like the first.
+    let mut second = first.clone().into_os_string();
+    second.push(".2");
+    let second = PathBuf::from(second);
     let werr = |source: io::Error| Error::Write {
         path: dest.to_path_buf(),
         source,
     };
-    let result = (|| {
+    let create = |path: &Path| -> Result<BufWriter<File>> {
         let file = OpenOptions::new()
             .write(true)
             .create_new(true)
-            .open(&tmp)
+            .open(path)
             .map_err(werr)?;
-        let mut w = BufWriter::with_capacity(256 * 1024, file);
+        Ok(BufWriter::with_capacity(256 * 1024, file))
+    };
+    let result = (|| {
+        let mut w = create(&first)?;
         let value = write(&mut w)?;
-        let file = w.into_inner().map_err(|e| werr(e.into_error()))?;
+        let mut file = w.into_inner().map_err(|e| werr(e.into_error()))?;
+        let mut done = &first;
+        if again(&value) {
+            drop(file);
+            let written = File::open(&first).map_err(werr)?;
+            let mut w = create(&second)?;
+            rewrite(&value, written, &mut w)?;
+            file = w.into_inner().map_err(|e| werr(e.into_error()))?;
+            done = &second;
+        }
         file.sync_all().map_err(werr)?;
         // Keep the original's permissions when replacing it.
         if let Ok(meta) = fs::metadata(dest) {
-            let _ = fs::set_permissions(&tmp, meta.permissions());
+            let _ = fs::set_permissions(done, meta.permissions());
         }
-        fs::rename(&tmp, dest).map_err(werr)?;
+        fs::rename(done, dest).map_err(werr)?;
         Ok(value)
     })();
-    if result.is_err() {
-        let _ = fs::remove_file(&tmp);
-    }
+    let _ = fs::remove_file(&first);
+    let _ = fs::remove_file(&second);
     result
 }
