@@ -296,14 +296,21 @@ pub fn rewrite_layer(
     // The slicer's bridge infill that reaches into a zone goes whole, anchors included: the
     // anchors lie over the sparse infill below and would be left hanging there, while loop 1
     // already ties the region to the wall below.
+    // Zone bounding boxes: most lines are nowhere near a zone.
+    let boxes: Vec<Option<geo::Rect<f64>>> = rewrites
+        .iter()
+        .map(|r| geo::BoundingRect::bounding_rect(&r.plan.zone))
+        .collect();
     let mut anchors: Vec<(u64, usize)> = Vec::new();
     for p in layer
         .paths
         .iter()
         .filter(|p| matches!(p.role, Role::BridgeInfill | Role::InternalBridge))
     {
-        if let Some(z) = rewrites.iter().position(|r| {
-            !clip_lines(std::slice::from_ref(&p.points), &r.plan.zone, true).is_empty()
+        let bb = crate::geometry::points_box(&p.points);
+        if let Some(z) = rewrites.iter().zip(&boxes).position(|(r, b)| {
+            b.is_some_and(|b| bb.is_some_and(|bb| geo::Intersects::intersects(&b, &bb)))
+                && !clip_lines(std::slice::from_ref(&p.points), &r.plan.zone, true).is_empty()
         }) {
             anchors.extend(p.seg_line.iter().map(|l| (*l, z)));
         }
@@ -311,11 +318,6 @@ pub fn rewrite_layer(
     anchors.sort_unstable();
     anchors.dedup_by_key(|a| a.0);
     let nl = line_end(&layer.raw);
-    // Zone bounding boxes: most lines are nowhere near a zone.
-    let boxes: Vec<Option<geo::Rect<f64>>> = rewrites
-        .iter()
-        .map(|r| geo::BoundingRect::bounding_rect(&r.plan.zone))
-        .collect();
     let mut machine: Machine = start.clone();
     let mut out = Vec::with_capacity(layer.raw.len() + 64 * 1024);
     let mut stats: Vec<RewriteStats> = rewrites

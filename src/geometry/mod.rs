@@ -44,6 +44,20 @@ pub fn offset(mp: &MultiPolygon<f64>, delta: f64) -> MultiPolygon<f64> {
 /// of what a printer positions to and keeps fronts light.
 pub const FRONT_TOLERANCE: f64 = 0.02;
 
+/// Bounding box of a polyline; `None` when it has no point.
+pub fn points_box(points: &[[f64; 2]]) -> Option<geo::Rect<f64>> {
+    let first = points.first()?;
+    let (mut lo, mut hi) = (*first, *first);
+    for q in points {
+        lo = [lo[0].min(q[0]), lo[1].min(q[1])];
+        hi = [hi[0].max(q[0]), hi[1].max(q[1])];
+    }
+    Some(geo::Rect::new(
+        geo::coord! {x: lo[0], y: lo[1]},
+        geo::coord! {x: hi[0], y: hi[1]},
+    ))
+}
+
 /// Grows `front` by `step` and cuts it back to `allowed`, with Clipper's exact integer
 /// arithmetic and a light simplification, so that repeating it keeps the front clean and its
 /// vertex count bounded (a float boolean engine snaps to its own grid and adds jitter).

@@ -323,16 +323,7 @@ fn max_distance(polygon: &Polygon<f64>, below: &MultiPolygon<f64>) -> f64 {
 }
 
 fn path_box(p: &crate::layers::Path) -> Option<Rect<f64>> {
-    let first = p.points.first()?;
-    let (mut lo, mut hi) = (*first, *first);
-    for q in &p.points {
-        lo = [lo[0].min(q[0]), lo[1].min(q[1])];
-        hi = [hi[0].max(q[0]), hi[1].max(q[1])];
-    }
-    Some(Rect::new(
-        coord! {x: lo[0], y: lo[1]},
-        coord! {x: hi[0], y: hi[1]},
-    ))
+    super::points_box(&p.points)
 }
 
 /// Length and filament of the layer's extrusions inside `polygon`, by role, and the object
