@@ -806,7 +806,13 @@ impl State {
     fn finish_current(&mut self, next_first_line: u64) {
         self.close_path();
         let kind = self.cur.kind;
-        let next = self.new_builder(kind, next_first_line);
+        let mut next = self.new_builder(kind, next_first_line);
+        // Consecutive layers are alike in size: one allocation instead of a doubling series
+        // of copies of a megabyte-sized buffer.
+        if self.keep_raw {
+            next.raw.reserve(self.cur.raw.len() + self.cur.raw.len() / 8);
+        }
+        next.paths.reserve(self.cur.paths.len());
         let b = std::mem::replace(&mut self.cur, next);
         let layer = self.complete(b);
         match self.facts.layer_source {
