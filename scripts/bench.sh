@@ -3,6 +3,9 @@
 #
 #   bash scripts/bench.sh                 # 10 MB plates, every command
 #   SIZE_MB=100 bash scripts/bench.sh     # 1, 10, 100 ... any size
+#   SRC=sample-gcode/tri_overhang_prusa_rel.gcode FLAT_LAYERS=20 bash scripts/bench.sh
+#                                         # another part; FLAT_LAYERS: its layers below the
+#                                         # first overhang (no plate without regions if unset)
 #
 # Two plates are made from sample-gcode/rect_overhang_prusa_rel.gcode: its layers repeated with
 # every copy shifted in X/Y (a plate of many parts printed layer by layer) until the file
@@ -15,7 +18,13 @@ cd "$(dirname "$0")/.."
 size_mb=${SIZE_MB:-10}
 mkdir -p bench-data
 cargo build --release --quiet
-src=sample-gcode/rect_overhang_prusa_rel.gcode
+src=${SRC:-sample-gcode/rect_overhang_prusa_rel.gcode}
+if [ -z "${SRC:-}" ]; then
+    flat_layers=${FLAT_LAYERS:-50}
+else
+    flat_layers=${FLAT_LAYERS:-}
+fi
+stem=$(basename "$src" .gcode)
 run() {
     local plate=$1 label=$2; shift 2
     local bytes
@@ -29,13 +38,15 @@ run() {
 print(f'{sys.argv[4]:<14} {s:7.2f} s {b/1048576/max(s,1e-3):8.1f} MB/s  peak RSS {r/1024:6.1f} MB')" \
         "$bytes" "$secs" "$rss_kb" "$label"
 }
-for kind in regions no-regions; do
-    plate=bench-data/plate_${size_mb}mb_${kind}.gcode
+kinds=regions
+[ -n "$flat_layers" ] && kinds="regions no-regions"
+for kind in $kinds; do
+    plate=bench-data/plate_${stem}_${size_mb}mb_${kind}.gcode
     if [ ! -f "$plate" ]; then
         if [ "$kind" = regions ]; then
             python3 scripts/make_plate.py "$src" "$size_mb" "$plate" >/dev/null
         else
-            python3 scripts/make_plate.py "$src" "$size_mb" "$plate" 50 >/dev/null
+            python3 scripts/make_plate.py "$src" "$size_mb" "$plate" "$flat_layers" >/dev/null
         fi
     fi
     echo "== $plate ($(( $(stat -c %s "$plate") / 1024 / 1024 )) MB, $kind)"

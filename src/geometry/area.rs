@@ -135,7 +135,7 @@ fn midpoints(layer: &Layer, keep: impl Fn(Role) -> bool) -> Vec<[f64; 2]> {
                 .map(|w| [(w[0][0] + w[1][0]) / 2.0, (w[0][1] + w[1][1]) / 2.0])
         })
         .collect();
-    v.sort_by(|a, b| a[0].total_cmp(&b[0]));
+    v.sort_unstable_by(|a, b| a[0].total_cmp(&b[0]));
     v
 }
 

@@ -3,7 +3,9 @@
 //! Input: an iterator of [`Layer`]s. Output: for each block in file order, a [`Detected`] with
 //! the layer, its printed area, the printed area below it and its unsupported regions, handed
 //! to a callback. Layers are processed in small batches whose geometry runs on all cores;
-//! only a batch and the area of the layer before it are held at once.
+//! only a batch, the area of the layer before it and the last footprint are held at once.
+//! Invariant: the areas are exactly those [`super::printed_area`] gives layer by layer; a
+//! footprint is shared only between layers whose outline strands are equal.
 
 use std::io;
 
