@@ -486,6 +486,15 @@ fn inside_intervals(pts: &[[f64; 2]], zone: &MultiPolygon<f64>) -> Vec<(f64, f64
     if total <= 1e-9 {
         return Vec::new();
     }
+    // Most strands near a zone lie wholly inside or outside it: an edge test and a point test
+    // decide them without a boolean operation.
+    if let Some(inside) = wholly_inside(pts, zone) {
+        return if inside && total > 1e-4 {
+            vec![(0.0, total)]
+        } else {
+            Vec::new()
+        };
+    }
     let pieces = clip_lines(&[pts.to_vec()], zone, true);
     let mut iv: Vec<(f64, f64)> = pieces
         .iter()
@@ -505,6 +514,21 @@ fn inside_intervals(pts: &[[f64; 2]], zone: &MultiPolygon<f64>) -> Vec<(f64, f64
         }
     }
     merged
+}
+
+/// Whether the polyline lies inside `zone` (`Some(true)`) or outside it (`Some(false)`) without
+/// crossing or touching its boundary; `None` when it meets the boundary.
+fn wholly_inside(pts: &[[f64; 2]], zone: &MultiPolygon<f64>) -> Option<bool> {
+    use geo::{Contains, Intersects};
+    let line = geo::LineString::from(pts.iter().map(|p| (p[0], p[1])).collect::<Vec<_>>());
+    let meets = zone.0.iter().any(|poly| {
+        poly.exterior().intersects(&line) || poly.interiors().iter().any(|r| r.intersects(&line))
+    });
+    if meets || pts.iter().flatten().any(|v| !v.is_finite()) {
+        return None;
+    }
+    let first = geo::Point::new(pts[0][0], pts[0][1]);
+    Some(zone.contains(&first))
 }
 
 /// Cumulative length along `pts` of the point nearest to `q`.
