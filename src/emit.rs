@@ -1287,5 +1287,51 @@ mod tests {
     }
 
     #[test]
-    fn durations() {}
+    fn footer_times_carry_across_units() {
+        let area = crate::layers::filament_area(1.75);
+        let block = b"; estimated printing time (normal mode) = 1d 23h 59m 30s\n\
+; estimated printing time (silent mode) = 59s\n";
+        let text = String::from_utf8(update_footer(block, 0.0, 45.0, area, 1.24)).unwrap();
+        assert!(text.contains("(normal mode) = 2d 0h 0m 15s\n"), "{text}");
+        assert!(text.contains("(silent mode) = 1m 44s\n"), "{text}");
+    }
+
+    #[test]
+    fn strands_clear_of_a_zone_edge_get_the_intervals_a_clip_gives() {
+        use geo::polygon;
+        // A 10 mm square zone with a 2 mm square hole.
+        let zone = MultiPolygon::new(vec![polygon!(
+            exterior: [(x: 0.0, y: 0.0), (x: 10.0, y: 0.0), (x: 10.0, y: 10.0), (x: 0.0, y: 10.0)],
+            interiors: [[(x: 4.0, y: 4.0), (x: 6.0, y: 4.0), (x: 6.0, y: 6.0), (x: 4.0, y: 6.0)]],
+        )]);
+        let cases: [(&[[f64; 2]], Option<bool>); 5] = [
+            (&[[1.0, 1.0], [3.0, 2.0]], Some(true)),
+            (&[[11.0, 1.0], [12.0, 9.0]], Some(false)),
+            (&[[4.5, 4.5], [5.5, 5.5]], Some(false)),
+            (&[[-1.0, 5.0], [11.0, 5.0]], None),
+            (&[[1.0, 0.0], [9.0, 0.0]], None),
+        ];
+        for (pts, expected) in cases {
+            assert_eq!(wholly_inside(pts, &zone), expected, "{pts:?}");
+            let by_clip: f64 = clip_lines(&[pts.to_vec()], &zone, true)
+                .iter()
+                .map(|p| polyline_length(p))
+                .sum();
+            let by_intervals: f64 = inside_intervals(pts, &zone)
+                .iter()
+                .map(|(a, b)| b - a)
+                .sum();
+            assert!(
+                (by_clip - by_intervals).abs() < 1e-6,
+                "{pts:?}: {by_clip} vs {by_intervals}"
+            );
+        }
+        // Crossing the whole square through the hole: 4 + 4 mm inside.
+        let iv = inside_intervals(&[[-1.0, 5.0], [11.0, 5.0]], &zone);
+        assert_eq!(iv.len(), 2, "{iv:?}");
+        assert!(
+            (iv[0].0 - 1.0).abs() < 1e-6 && (iv[1].1 - 11.0).abs() < 1e-6,
+            "{iv:?}"
+        );
+    }
 }

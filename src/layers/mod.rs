@@ -810,7 +810,8 @@ impl State {
         // Consecutive layers are alike in size: one allocation instead of a doubling series
         // of copies of a megabyte-sized buffer.
         if self.keep_raw {
-            next.raw.reserve(self.cur.raw.len() + self.cur.raw.len() / 8);
+            next.raw
+                .reserve(self.cur.raw.len() + self.cur.raw.len() / 8);
         }
         next.paths.reserve(self.cur.paths.len());
         let b = std::mem::replace(&mut self.cur, next);
