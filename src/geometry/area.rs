@@ -21,6 +21,7 @@ use geo::{
     LineString, MultiLineString, MultiPolygon, Orient, Point, Polygon,
 };
 
+use rayon::prelude::*;
 use rstar::primitives::{GeomWithData, Rectangle};
 use rstar::RTree;
 
@@ -85,6 +86,19 @@ impl Strands {
     /// Union of the strands' footprints (centerline buffered by width / 2, round caps and
     /// joins).
     pub fn buffer(&self) -> MultiPolygon<f64> {
+        match self.split() {
+            // The parts of a plate, each buffered alone and on all cores: the union of
+            // footprints that cannot meet is their concatenation.
+            Some(groups) => {
+                let parts: Vec<MultiPolygon<f64>> =
+                    groups.par_iter().map(Strands::buffer_whole).collect();
+                MultiPolygon::new(parts.into_iter().flat_map(|m| m.0).collect())
+            }
+            None => self.buffer_whole(),
+        }
+    }
+
+    fn buffer_whole(&self) -> MultiPolygon<f64> {
         let mut parts: Vec<MultiPolygon<f64>> = Vec::new();
         for (key, lines) in &self.0 {
             let half = *key as f64 / 2000.0;
@@ -98,6 +112,70 @@ impl Strands {
             1 => parts.pop().unwrap_or_else(|| MultiPolygon::new(Vec::new())),
             _ => unary_union(parts.iter().flat_map(|m| m.0.iter())),
         }
+    }
+
+    /// Groups of strands whose footprints cannot meet: no strand's box, grown by more than
+    /// its half width, meets a box of another group. `None` when there is one group.
+    fn split(&self) -> Option<Vec<Strands>> {
+        // (width key, index in its list, box grown by the footprint's reach)
+        let mut items: Vec<(i64, usize, [f64; 2], [f64; 2])> = Vec::new();
+        for (key, lines) in &self.0 {
+            // Round caps and joins are polygons that may reach a little past the half width.
+            let reach = *key as f64 / 2000.0 * 1.1 + 1e-3;
+            for (i, l) in lines.iter().enumerate() {
+                let b = l.bounding_rect()?;
+                let (lo, hi) = (b.min(), b.max());
+                if ![lo.x, lo.y, hi.x, hi.y].iter().all(|v| v.is_finite()) {
+                    return None;
+                }
+                items.push((
+                    *key,
+                    i,
+                    [lo.x - reach, lo.y - reach],
+                    [hi.x + reach, hi.y + reach],
+                ));
+            }
+        }
+        items.sort_unstable_by(|a, b| a.2[0].total_cmp(&b.2[0]));
+        // Sweep in x: a group whose box ends left of the next item can take no more items.
+        let mut parent: Vec<usize> = (0..items.len()).collect();
+        let mut open: Vec<(usize, [f64; 2], [f64; 2])> = Vec::new();
+        for (n, &(_, _, lo, hi)) in items.iter().enumerate() {
+            open.retain(|g| g.2[0] >= lo[0]);
+            let (mut glo, mut ghi) = (lo, hi);
+            open.retain(|&(root, a, b)| {
+                let meets = a[0] <= hi[0] && b[0] >= lo[0] && a[1] <= hi[1] && b[1] >= lo[1];
+                if meets {
+                    parent[root] = n;
+                    glo = [glo[0].min(a[0]), glo[1].min(a[1])];
+                    ghi = [ghi[0].max(b[0]), ghi[1].max(b[1])];
+                }
+                !meets
+            });
+            open.push((n, glo, ghi));
+        }
+        // A group's root is always a later item than its members: resolve from the end.
+        let mut root = parent;
+        for n in (0..root.len()).rev() {
+            root[n] = root[root[n]];
+        }
+        if root.iter().enumerate().filter(|&(n, &r)| n == r).count() <= 1 {
+            return None;
+        }
+        let mut group_of: BTreeMap<usize, usize> = BTreeMap::new();
+        let mut groups: Vec<Strands> = Vec::new();
+        for (n, &(key, i, _, _)) in items.iter().enumerate() {
+            let g = *group_of.entry(root[n]).or_insert_with(|| {
+                groups.push(Strands::default());
+                groups.len() - 1
+            });
+            groups[g]
+                .0
+                .entry(key)
+                .or_default()
+                .push(self.0[&key][i].clone());
+        }
+        Some(groups)
     }
 }
 
@@ -426,6 +504,42 @@ mod tests {
             seg_e: vec![0.01; pts.len() - 1],
             feed: 1200.0,
         }
+    }
+
+    fn square(x: f64, y: f64, side: f64) -> Vec<[f64; 2]> {
+        vec![
+            [x, y],
+            [x + side, y],
+            [x + side, y + side],
+            [x, y + side],
+            [x, y],
+        ]
+    }
+
+    #[test]
+    fn parts_apart_are_buffered_alone_and_give_the_same_footprint() {
+        let w = 0.45;
+        // Two squares 3 mm apart, and a third whose bead touches the second's (0.3 mm gap).
+        let paths = vec![
+            path(Role::ExternalPerimeter, w, &square(0.0, 0.0, 10.0)),
+            path(Role::ExternalPerimeter, w, &square(13.0, 0.0, 10.0)),
+            path(Role::Perimeter, 0.5, &square(23.3, 0.0, 5.0)),
+        ];
+        let strands = Strands::of(&paths);
+        let groups = strands.split().expect("two groups");
+        assert_eq!(groups.len(), 2);
+        let sizes: Vec<usize> = groups
+            .iter()
+            .map(|g| g.0.values().map(Vec::len).sum())
+            .collect();
+        assert_eq!(sizes, vec![1, 2], "the touching squares stay together");
+        let split = strands.buffer();
+        let whole = strands.buffer_whole();
+        assert_eq!(split.0.len(), whole.0.len());
+        let (a, b) = (split.unsigned_area(), whole.unsigned_area());
+        assert!((a - b).abs() < 1e-3 * b, "{a} vs {b}");
+        // One part: no split.
+        assert!(Strands::of(&paths[..1]).split().is_none());
     }
 
     fn layer(paths: Vec<Path>) -> Layer {
