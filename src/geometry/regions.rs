@@ -145,7 +145,7 @@ pub fn find_regions(
     let raw = if grown.0.is_empty() {
         here.clone()
     } else {
-        BooleanOps::difference(here, &grown)
+        uncovered(here, &grown)
     };
     if raw.unsigned_area() < opts.min_area {
         return Vec::new();
@@ -164,6 +164,54 @@ pub fn find_regions(
     kept.into_iter()
         .map(|polygon| describe(polygon, below, &anchor_zone, layer, &boxes, opts))
         .collect()
+}
+
+/// `here - cover`, part by part: each polygon of `here` (they are disjoint) minus the polygons
+/// of `cover` whose boxes meet its box. On a plate the booleans stay the size of one part, and
+/// the parts run on all cores.
+fn uncovered(here: &MultiPolygon<f64>, cover: &MultiPolygon<f64>) -> MultiPolygon<f64> {
+    use rayon::prelude::*;
+    use rstar::primitives::{GeomWithData, Rectangle};
+    use rstar::AABB;
+    let corners = |b: Rect<f64>| ([b.min().x, b.min().y], [b.max().x, b.max().y]);
+    let boxes: Vec<GeomWithData<Rectangle<[f64; 2]>, usize>> = cover
+        .0
+        .iter()
+        .enumerate()
+        .filter_map(|(i, p)| {
+            let (lo, hi) = corners(p.bounding_rect()?);
+            Some(GeomWithData::new(Rectangle::from_corners(lo, hi), i))
+        })
+        .collect();
+    // An R-tree cannot order NaN boxes: such input goes through one plain boolean.
+    let finite = |g: &GeomWithData<Rectangle<[f64; 2]>, usize>| {
+        let (lo, hi) = (g.geom().lower(), g.geom().upper());
+        lo.iter().chain(&hi).all(|v| v.is_finite())
+    };
+    if !boxes.iter().all(finite) {
+        return BooleanOps::difference(here, cover);
+    }
+    let tree = RTree::bulk_load(boxes);
+    let parts: Vec<Vec<Polygon<f64>>> = here
+        .0
+        .par_iter()
+        .map(|p| {
+            let Some(b) = p.bounding_rect() else {
+                return Vec::new();
+            };
+            let (lo, hi) = corners(b);
+            let near: Vec<Polygon<f64>> = tree
+                .locate_in_envelope_intersecting(&AABB::from_corners(lo, hi))
+                .map(|g| cover.0[g.data].clone())
+                .collect();
+            if near.is_empty() {
+                vec![p.clone()]
+            } else {
+                BooleanOps::difference(p, &MultiPolygon::new(near)).0
+            }
+        })
+        .collect();
+    MultiPolygon::new(parts.into_iter().flatten().collect())
 }
 
 fn describe(
@@ -402,6 +450,31 @@ mod tests {
     use super::*;
     use crate::layers::LayerKind;
     use geo::{coord, LineString};
+
+    #[test]
+    fn uncovered_part_by_part_is_the_whole_difference() {
+        // Three parts: one fully covered, one half covered, one with nothing near it; the
+        // cover also has a polygon far from every part.
+        let here = mp(vec![
+            rect(0.0, 0.0, 10.0, 10.0),
+            rect(20.0, 0.0, 30.0, 10.0),
+            rect(40.0, 0.0, 50.0, 10.0),
+        ]);
+        let cover = mp(vec![
+            rect(-1.0, -1.0, 11.0, 11.0),
+            rect(19.0, -1.0, 25.0, 11.0),
+            rect(100.0, 100.0, 110.0, 110.0),
+        ]);
+        let parts = uncovered(&here, &cover);
+        let whole = BooleanOps::difference(&here, &cover);
+        assert!(
+            (parts.unsigned_area() - 150.0).abs() < 1e-6,
+            "{}",
+            parts.unsigned_area()
+        );
+        assert!((parts.unsigned_area() - whole.unsigned_area()).abs() < 1e-6);
+        assert_eq!(parts.0.len(), 2);
+    }
 
     fn layer() -> Layer {
         Layer {
