@@ -117,65 +117,43 @@ impl Strands {
     /// Groups of strands whose footprints cannot meet: no strand's box, grown by more than
     /// its half width, meets a box of another group. `None` when there is one group.
     fn split(&self) -> Option<Vec<Strands>> {
-        // (width key, index in its list, box grown by the footprint's reach)
-        let mut items: Vec<(i64, usize, [f64; 2], [f64; 2])> = Vec::new();
+        let mut items: Vec<(i64, usize)> = Vec::new();
+        let mut boxes: Vec<super::Box2> = Vec::new();
         for (key, lines) in &self.0 {
             // Round caps and joins are polygons that may reach a little past the half width.
             let reach = *key as f64 / 2000.0 * 1.1 + 1e-3;
             for (i, l) in lines.iter().enumerate() {
                 let b = l.bounding_rect()?;
-                let (lo, hi) = (b.min(), b.max());
-                if ![lo.x, lo.y, hi.x, hi.y].iter().all(|v| v.is_finite()) {
+                if ![b.min().x, b.min().y, b.max().x, b.max().y]
+                    .iter()
+                    .all(|v| v.is_finite())
+                {
                     return None;
                 }
-                items.push((
-                    *key,
-                    i,
-                    [lo.x - reach, lo.y - reach],
-                    [hi.x + reach, hi.y + reach],
+                items.push((*key, i));
+                boxes.push((
+                    [b.min().x - reach, b.min().y - reach],
+                    [b.max().x + reach, b.max().y + reach],
                 ));
             }
         }
-        items.sort_unstable_by(|a, b| a.2[0].total_cmp(&b.2[0]));
-        // Sweep in x: a group whose box ends left of the next item can take no more items.
-        let mut parent: Vec<usize> = (0..items.len()).collect();
-        let mut open: Vec<(usize, [f64; 2], [f64; 2])> = Vec::new();
-        for (n, &(_, _, lo, hi)) in items.iter().enumerate() {
-            open.retain(|g| g.2[0] >= lo[0]);
-            let (mut glo, mut ghi) = (lo, hi);
-            open.retain(|&(root, a, b)| {
-                let meets = a[0] <= hi[0] && b[0] >= lo[0] && a[1] <= hi[1] && b[1] >= lo[1];
-                if meets {
-                    parent[root] = n;
-                    glo = [glo[0].min(a[0]), glo[1].min(a[1])];
-                    ghi = [ghi[0].max(b[0]), ghi[1].max(b[1])];
-                }
-                !meets
-            });
-            open.push((n, glo, ghi));
-        }
-        // A group's root is always a later item than its members: resolve from the end.
-        let mut root = parent;
-        for n in (0..root.len()).rev() {
-            root[n] = root[root[n]];
-        }
-        if root.iter().enumerate().filter(|&(n, &r)| n == r).count() <= 1 {
+        let groups = super::box_groups(&boxes);
+        if groups.len() <= 1 {
             return None;
         }
-        let mut group_of: BTreeMap<usize, usize> = BTreeMap::new();
-        let mut groups: Vec<Strands> = Vec::new();
-        for (n, &(key, i, _, _)) in items.iter().enumerate() {
-            let g = *group_of.entry(root[n]).or_insert_with(|| {
-                groups.push(Strands::default());
-                groups.len() - 1
-            });
-            groups[g]
-                .0
-                .entry(key)
-                .or_default()
-                .push(self.0[&key][i].clone());
-        }
-        Some(groups)
+        Some(
+            groups
+                .iter()
+                .map(|g| {
+                    let mut s = Strands::default();
+                    for &n in g {
+                        let (key, i) = items[n];
+                        s.0.entry(key).or_default().push(self.0[&key][i].clone());
+                    }
+                    s
+                })
+                .collect(),
+        )
     }
 }
 

@@ -39,6 +39,93 @@ pub fn offset(mp: &MultiPolygon<f64>, delta: f64) -> MultiPolygon<f64> {
     )
 }
 
+/// [`offset`] of the far-apart parts of `mp` separately, on all cores: growing parts that stay
+/// apart cannot merge, so the union Clipper would make is their concatenation. The same
+/// shapes as [`offset`], in another polygon order.
+pub fn offset_parts(mp: &MultiPolygon<f64>, delta: f64) -> MultiPolygon<f64> {
+    use geo::BoundingRect;
+    use rayon::prelude::*;
+    // Round joins lie on the arc; the margin covers Clipper's integer rounding.
+    let reach = delta.max(0.0) + 1e-3;
+    let boxes: Option<Vec<Box2>> =
+        mp.0.iter()
+            .map(|p| {
+                let b = p.bounding_rect()?;
+                Some((
+                    [b.min().x - reach, b.min().y - reach],
+                    [b.max().x + reach, b.max().y + reach],
+                ))
+            })
+            .collect();
+    let groups = match boxes {
+        Some(b) if mp.0.len() > 1 => box_groups(&b),
+        _ => return offset(mp, delta),
+    };
+    if groups.len() <= 1 {
+        return offset(mp, delta);
+    }
+    let parts: Vec<MultiPolygon<f64>> = groups
+        .par_iter()
+        .map(|g| {
+            offset(
+                &MultiPolygon::new(g.iter().map(|&i| mp.0[i].clone()).collect()),
+                delta,
+            )
+        })
+        .collect();
+    MultiPolygon::new(parts.into_iter().flat_map(|m| m.0).collect())
+}
+
+/// An axis-aligned box: lower and upper corners.
+pub type Box2 = ([f64; 2], [f64; 2]);
+
+/// Groups of boxes such that two boxes that meet are always in one group (a group may also
+/// take a box that only meets its members' bounding box): the indices of each group, groups in
+/// the order of their leftmost box and members by their left edges. Boxes with a NaN or
+/// infinite corner all go to one group of their own, last.
+pub fn box_groups(boxes: &[Box2]) -> Vec<Vec<usize>> {
+    let finite = |b: &Box2| b.0.iter().chain(&b.1).all(|v| v.is_finite());
+    let mut order: Vec<usize> = (0..boxes.len()).filter(|&i| finite(&boxes[i])).collect();
+    let odd: Vec<usize> = (0..boxes.len()).filter(|&i| !finite(&boxes[i])).collect();
+    order.sort_unstable_by(|&a, &b| boxes[a].0[0].total_cmp(&boxes[b].0[0]));
+    // Sweep in x over the sorted boxes (positions in `order`): a group whose box ends left of
+    // the next box can take no more. Every merge points the old root at a later position.
+    let mut parent: Vec<usize> = (0..order.len()).collect();
+    let mut open: Vec<(usize, Box2)> = Vec::new();
+    for (n, &i) in order.iter().enumerate() {
+        let (lo, hi) = boxes[i];
+        open.retain(|g| g.1 .1[0] >= lo[0]);
+        let (mut glo, mut ghi) = (lo, hi);
+        open.retain(|&(root, (a, b))| {
+            let meets = a[0] <= hi[0] && b[0] >= lo[0] && a[1] <= hi[1] && b[1] >= lo[1];
+            if meets {
+                parent[root] = n;
+                glo = [glo[0].min(a[0]), glo[1].min(a[1])];
+                ghi = [ghi[0].max(b[0]), ghi[1].max(b[1])];
+            }
+            !meets
+        });
+        open.push((n, (glo, ghi)));
+    }
+    let mut root = parent;
+    for n in (0..root.len()).rev() {
+        root[n] = root[root[n]];
+    }
+    let mut group_of: std::collections::HashMap<usize, usize> = Default::default();
+    let mut groups: Vec<Vec<usize>> = Vec::new();
+    for (n, &i) in order.iter().enumerate() {
+        let g = *group_of.entry(root[n]).or_insert_with(|| {
+            groups.push(Vec::new());
+            groups.len() - 1
+        });
+        groups[g].push(i);
+    }
+    if !odd.is_empty() {
+        groups.push(odd);
+    }
+    groups
+}
+
 /// Largest distance (mm) between a loop front's round joins and the true offset. A front is
 /// grown dozens of times, so its vertex count sets the cost of planning; 0.02 mm is a tenth
 /// of what a printer positions to and keeps fronts light.
@@ -203,6 +290,45 @@ mod tests {
     use super::testutil::*;
     use super::*;
     use geo::Area;
+
+    #[test]
+    fn meeting_boxes_share_a_group() {
+        let b = |x0: f64, y0: f64, x1: f64, y1: f64| ([x0, y0], [x1, y1]);
+        let boxes = [
+            b(20.0, 0.0, 21.0, 1.0),
+            b(0.0, 0.0, 2.0, 2.0),
+            b(1.5, 1.5, 3.0, 3.0),
+            b(2.5, 0.0, 4.0, 0.5),
+            b(0.0, 10.0, 1.0, 11.0),
+            b(f64::NAN, 0.0, 1.0, 1.0),
+        ];
+        let groups = box_groups(&boxes);
+        let group = |i: usize| groups.iter().position(|g| g.contains(&i)).unwrap();
+        assert_eq!(groups.iter().map(Vec::len).sum::<usize>(), boxes.len());
+        assert_eq!(group(1), group(2), "overlapping boxes");
+        assert_ne!(group(0), group(1), "far apart");
+        assert_ne!(group(4), group(1), "far apart");
+        assert_eq!(groups.last(), Some(&vec![5]), "a NaN box alone, last");
+    }
+
+    #[test]
+    fn parts_offset_alone_give_what_one_offset_gives() {
+        // Two squares 1 mm apart merge when grown by 0.6 mm; a third stays apart.
+        let m = mp(vec![
+            rect(0.0, 0.0, 5.0, 5.0),
+            rect(6.0, 0.0, 11.0, 5.0),
+            rect(30.0, 0.0, 35.0, 5.0),
+        ]);
+        for delta in [0.3, 0.6, -0.5] {
+            let (parts, whole) = (offset_parts(&m, delta), offset(&m, delta));
+            assert_eq!(parts.0.len(), whole.0.len(), "delta {delta}");
+            assert!(
+                (parts.unsigned_area() - whole.unsigned_area()).abs() < 1e-9,
+                "delta {delta}"
+            );
+        }
+        assert_eq!(offset_parts(&m, 0.6).0.len(), 2);
+    }
 
     #[test]
     fn offset_grows_and_shrinks() {

@@ -23,7 +23,7 @@ use serde::Serialize;
 use crate::layers::{Layer, Role};
 
 use super::area::AreaOptions;
-use super::{near, offset, opening};
+use super::{near, offset_parts, opening};
 
 /// How far from the layer below a point may be and still count as supported.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -141,7 +141,7 @@ pub fn find_regions(
         return Vec::new();
     }
     let tol = opts.tolerance_at(layer.height);
-    let grown = offset(below, tol);
+    let grown = offset_parts(below, tol);
     let raw = if grown.0.is_empty() {
         here.clone()
     } else {
@@ -159,7 +159,7 @@ pub fn find_regions(
     if kept.is_empty() {
         return Vec::new();
     }
-    let anchor_zone = offset(below, tol + ANCHOR_SLACK);
+    let anchor_zone = offset_parts(below, tol + ANCHOR_SLACK);
     let boxes: Vec<Option<Rect<f64>>> = layer.paths.iter().map(path_box).collect();
     kept.into_iter()
         .map(|polygon| describe(polygon, below, &anchor_zone, layer, &boxes, opts))
