@@ -127,7 +127,7 @@ where
     })
 }
 
-fn detect_batches<I, F>(layers: I, opts: &DetectOptions, mut sink: F) -> io::Result<()>
+fn detect_batches<I, F>(mut layers: I, opts: &DetectOptions, mut sink: F) -> io::Result<()>
 where
     I: Iterator<Item = io::Result<Layer>>,
     F: FnMut(Detected) -> io::Result<()>,
@@ -136,7 +136,6 @@ where
     let mut last: Option<(Strands, MultiPolygon<f64>)> = None;
     let mut batch: Vec<Layer> = Vec::with_capacity(BATCH);
     let mut batch_bytes = 0;
-    let mut layers = layers.peekable();
     loop {
         let next = layers.next().transpose()?;
         let end = next.is_none();
