@@ -1,7 +1,9 @@
 //! A layer's printed area: what the layer above can rest on.
 //!
-//! The footprint of a strand is its centerline buffered by half its width. A layer's printed
-//! area is the union of its footprints with the gaps *inside* the part closed: the air between
+//! The footprint of a strand is its centerline buffered by half its width; the strands of parts
+//! too far apart to touch are buffered separately, in parallel, and their footprints put side
+//! by side (the union of disjoint shapes). A layer's printed area is the union of its
+//! footprints with the gaps *inside* the part closed: the air between
 //! sparse-infill lines, or between an inner perimeter and the infill, is not air for the layer
 //! above (a slicer bridges it on purpose). Real holes of the part stay open.
 //!
