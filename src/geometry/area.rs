@@ -24,8 +24,6 @@ use geo::{
 };
 
 use rayon::prelude::*;
-use rstar::primitives::{GeomWithData, Rectangle};
-use rstar::RTree;
 
 use crate::layers::{Layer, Path, Role};
 
@@ -306,36 +304,20 @@ fn path_inside(p: &Path, area: &Located) -> bool {
         .all(|q| area.contains(q[0], q[1]))
 }
 
-/// A polygon set indexed by bounding box: a plate of many parts has hundreds of polygons in
-/// a layer, and each of thousands of strands asks which one holds it.
+/// A polygon set with its [`BoxIndex`](super::BoxIndex).
 struct Located {
     area: MultiPolygon<f64>,
-    boxes: RTree<GeomWithData<Rectangle<[f64; 2]>, usize>>,
+    index: super::BoxIndex,
 }
 
 impl Located {
     fn new(area: MultiPolygon<f64>) -> Self {
-        let boxes = area
-            .0
-            .iter()
-            .enumerate()
-            .filter_map(|(i, poly)| {
-                let b = poly.bounding_rect()?;
-                let r = Rectangle::from_corners([b.min().x, b.min().y], [b.max().x, b.max().y]);
-                Some(GeomWithData::new(r, i))
-            })
-            .collect();
-        Located {
-            area,
-            boxes: RTree::bulk_load(boxes),
-        }
+        let index = super::BoxIndex::new(&area);
+        Located { area, index }
     }
 
     fn contains(&self, x: f64, y: f64) -> bool {
-        let pt = Point::new(x, y);
-        self.boxes
-            .locate_all_at_point(&[x, y])
-            .any(|g| self.area.0[g.data].contains(&pt))
+        self.index.contains(&self.area, x, y)
     }
 }
 

@@ -76,6 +76,55 @@ pub fn offset_parts(mp: &MultiPolygon<f64>, delta: f64) -> MultiPolygon<f64> {
     MultiPolygon::new(parts.into_iter().flat_map(|m| m.0).collect())
 }
 
+/// The polygons of a set indexed by bounding box, for many queries against one set (a plate's
+/// layer has hundreds of parts, and thousands of strands ask which one holds them). Polygons
+/// whose box is not finite (an R-tree cannot order NaN) are answered for every query.
+pub struct BoxIndex {
+    tree: rstar::RTree<
+        rstar::primitives::GeomWithData<rstar::primitives::Rectangle<[f64; 2]>, usize>,
+    >,
+    odd: Vec<usize>,
+}
+
+impl BoxIndex {
+    pub fn new(set: &MultiPolygon<f64>) -> BoxIndex {
+        use geo::BoundingRect;
+        use rstar::primitives::{GeomWithData, Rectangle};
+        let mut boxes = Vec::with_capacity(set.0.len());
+        let mut odd = Vec::new();
+        for (i, p) in set.0.iter().enumerate() {
+            let Some(b) = p.bounding_rect() else {
+                continue;
+            };
+            let (lo, hi) = ([b.min().x, b.min().y], [b.max().x, b.max().y]);
+            if lo.iter().chain(&hi).all(|v| v.is_finite()) {
+                boxes.push(GeomWithData::new(Rectangle::from_corners(lo, hi), i));
+            } else {
+                odd.push(i);
+            }
+        }
+        BoxIndex {
+            tree: rstar::RTree::bulk_load(boxes),
+            odd,
+        }
+    }
+
+    /// Indices of the polygons whose boxes meet the box `lo`..`hi`.
+    pub fn meeting(&self, lo: [f64; 2], hi: [f64; 2]) -> impl Iterator<Item = usize> + '_ {
+        self.tree
+            .locate_in_envelope_intersecting(&rstar::AABB::from_corners(lo, hi))
+            .map(|g| g.data)
+            .chain(self.odd.iter().copied())
+    }
+
+    /// Whether the point lies in a polygon of `set`, the set this index was built from.
+    pub fn contains(&self, set: &MultiPolygon<f64>, x: f64, y: f64) -> bool {
+        use geo::Contains;
+        let pt = geo::Point::new(x, y);
+        self.meeting([x, y], [x, y]).any(|i| set.0[i].contains(&pt))
+    }
+}
+
 /// An axis-aligned box: lower and upper corners.
 pub type Box2 = ([f64; 2], [f64; 2]);
 

@@ -171,27 +171,7 @@ pub fn find_regions(
 /// the parts run on all cores.
 fn uncovered(here: &MultiPolygon<f64>, cover: &MultiPolygon<f64>) -> MultiPolygon<f64> {
     use rayon::prelude::*;
-    use rstar::primitives::{GeomWithData, Rectangle};
-    use rstar::AABB;
-    let corners = |b: Rect<f64>| ([b.min().x, b.min().y], [b.max().x, b.max().y]);
-    let boxes: Vec<GeomWithData<Rectangle<[f64; 2]>, usize>> = cover
-        .0
-        .iter()
-        .enumerate()
-        .filter_map(|(i, p)| {
-            let (lo, hi) = corners(p.bounding_rect()?);
-            Some(GeomWithData::new(Rectangle::from_corners(lo, hi), i))
-        })
-        .collect();
-    // An R-tree cannot order NaN boxes: such input goes through one plain boolean.
-    let finite = |g: &GeomWithData<Rectangle<[f64; 2]>, usize>| {
-        let (lo, hi) = (g.geom().lower(), g.geom().upper());
-        lo.iter().chain(&hi).all(|v| v.is_finite())
-    };
-    if !boxes.iter().all(finite) {
-        return BooleanOps::difference(here, cover);
-    }
-    let tree = RTree::bulk_load(boxes);
+    let index = super::BoxIndex::new(cover);
     let parts: Vec<Vec<Polygon<f64>>> = here
         .0
         .par_iter()
@@ -199,10 +179,9 @@ fn uncovered(here: &MultiPolygon<f64>, cover: &MultiPolygon<f64>) -> MultiPolygo
             let Some(b) = p.bounding_rect() else {
                 return Vec::new();
             };
-            let (lo, hi) = corners(b);
-            let near: Vec<Polygon<f64>> = tree
-                .locate_in_envelope_intersecting(&AABB::from_corners(lo, hi))
-                .map(|g| cover.0[g.data].clone())
+            let near: Vec<Polygon<f64>> = index
+                .meeting([b.min().x, b.min().y], [b.max().x, b.max().y])
+                .map(|i| cover.0[i].clone())
                 .collect();
             if near.is_empty() {
                 vec![p.clone()]
