@@ -8,8 +8,14 @@
 # `poa [--profile P] [extra options] FILE` on it (the same slicer mode PrusaSlicer uses), and
 # hands the rewritten G-code back to Cura. If poa fails, Cura gets the G-code unchanged and
 # shows poa's message.
+#
+# Cura's G-code carries almost none of its settings, so the script reads them from Cura (the
+# first extruder's stack, then the global stack) and hands them to poa as the `SLIC3R_*`
+# environment variables PrusaSlicer exports to its post-processing scripts (see CURA_TO_SLIC3R).
+# A setting Cura does not have, or that cannot be read, is simply not passed.
 
 import json
+import math
 import os
 import subprocess
 import tempfile
@@ -34,17 +40,138 @@ def _tell_user(text):
         Message(text, title="Print on Air (poa)").show()
 
 
-def _cura_setting(key):
-    """A setting of the active machine/extruder, or None outside Cura."""
+def _cura_stacks():
+    """The stacks settings are read from: the first extruder's, then the global one; [] when
+    Cura (or an active machine) is not available."""
+    app = None
     try:
-        from cura.CuraApplication import CuraApplication
+        from UM.Application import Application
 
-        stack = CuraApplication.getInstance().getGlobalContainerStack()
-        extruders = stack.extruderList if stack is not None else []
-        target = extruders[0] if extruders else stack
-        return target.getProperty(key, "value")
+        app = Application.getInstance()
     except Exception:  # noqa: BLE001 - any failure means "not available"
+        app = None
+    if app is None:
+        try:
+            from cura.CuraApplication import CuraApplication
+
+            app = CuraApplication.getInstance()
+        except Exception:  # noqa: BLE001
+            return []
+    try:
+        stack = app.getGlobalContainerStack()
+    except Exception:  # noqa: BLE001
+        return []
+    if stack is None:
+        return []
+    try:
+        extruders = list(stack.extruderList or [])
+    except Exception:  # noqa: BLE001
+        extruders = []
+    stacks = [extruders[0]] if extruders and extruders[0] is not None else []
+    return stacks + [stack]
+
+
+def _cura_setting(key, stacks=None):
+    """A setting of the active extruder (or, failing that, of the machine), or None."""
+    for stack in _cura_stacks() if stacks is None else stacks:
+        try:
+            value = stack.getProperty(key, "value")
+        except Exception:  # noqa: BLE001
+            continue
+        if value is not None:
+            return value
+    return None
+
+
+def _material_type(stacks):
+    """PLA, PETG...: a `material_type` setting if Cura has one, else the `material` entry of the
+    extruder's material profile metadata."""
+    value = _text(_cura_setting("material_type", stacks))
+    if value:
+        return value
+    for stack in stacks:
+        try:
+            value = _text(stack.material.getMetaDataEntry("material"))
+        except Exception:  # noqa: BLE001
+            continue
+        if value and value.lower() != "empty":
+            return value
+    return None
+
+
+def _text(value):
+    if value is None or isinstance(value, bool):
         return None
+    text = str(value).strip()
+    return text or None
+
+
+def _number(value, positive=False):
+    """A finite number written plainly (17, 0.42; no exponent), or None."""
+    if value is None or isinstance(value, bool):
+        return None
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        return None
+    if not math.isfinite(x) or (positive and x <= 0):
+        return None
+    text = ("%.6f" % x).rstrip("0").rstrip(".")
+    return "0" if text in ("", "-0") else text
+
+
+def _enabled(value):
+    """Cura booleans (True/False, sometimes "True"/"False" strings); None when unknown."""
+    if isinstance(value, bool):
+        return value
+    if isinstance(value, str) and value.strip().lower() in ("true", "false"):
+        return value.strip().lower() == "true"
+    return None
+
+
+# Cura setting (alternatives in order) -> poa's setting (PrusaSlicer spelling, SLIC3R_<KEY>).
+# All are positive quantities: a zero or negative value is not passed.
+CURA_TO_SLIC3R = [
+    (("bridge_wall_speed", "bridge_skin_speed"), "bridge_speed"),
+    (("wall_line_width_0",), "external_perimeter_extrusion_width"),
+    (("wall_line_width_x",), "perimeter_extrusion_width"),
+    (("line_width",), "extrusion_width"),
+    (("machine_nozzle_size",), "nozzle_diameter"),
+    (("layer_height",), "layer_height"),
+    (("material_diameter",), "filament_diameter"),
+    (("speed_travel",), "travel_speed"),
+]
+
+
+def slicer_env(stacks=None):
+    """The SLIC3R_* variables for poa from Cura's settings ({} outside Cura). Never raises."""
+    env = {}
+    try:
+        stacks = _cura_stacks() if stacks is None else stacks
+        if not stacks:
+            return env
+
+        def put(key, value):
+            if value is not None:
+                env["SLIC3R_" + key.upper()] = value
+
+        put("filament_type", _material_type(stacks))
+        for cura_keys, key in CURA_TO_SLIC3R:
+            for cura_key in cura_keys:
+                value = _number(_cura_setting(cura_key, stacks), positive=True)
+                if value is not None:
+                    put(key, value)
+                    break
+        retracting = _enabled(_cura_setting("retraction_enable", stacks))
+        if retracting is False:
+            put("retract_length", "0")
+        else:
+            put("retract_length", _number(_cura_setting("retraction_amount", stacks)))
+            if _enabled(_cura_setting("retraction_hop_enabled", stacks)):
+                put("retract_lift", _number(_cura_setting("retraction_hop", stacks)))
+    except Exception as e:  # noqa: BLE001 - settings are a help, never a reason to fail
+        _log("w", "poa: could not read all of Cura's settings: {}".format(e))
+    return env
 
 
 class PoaPrintOnAir(Script):
@@ -104,10 +231,13 @@ class PoaPrintOnAir(Script):
             with os.fdopen(fd, "w", encoding="utf-8", newline="") as f:
                 f.write(text)
             env = dict(os.environ)
-            # Cura's G-code does not state the filament diameter; poa's flow model needs it.
-            diameter = _cura_setting("material_diameter")
-            if diameter:
-                env["SLIC3R_FILAMENT_DIAMETER"] = str(diameter)
+            # Cura's G-code states hardly any of its settings (filament diameter, line widths,
+            # bridge speed, material...); poa reads them from SLIC3R_* variables.
+            settings = slicer_env()
+            env.update(settings)
+            if settings:
+                passed = ", ".join("{}={}".format(k, v) for k, v in sorted(settings.items()))
+                _log("d", "poa: Cura settings passed: " + passed)
             cmd = self.command(path)
             try:
                 result = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=600)

@@ -1,7 +1,7 @@
 //! Hostile and broken inputs: each gets correct processing or a clean refusal, never a panic,
 //! and the user's file is byte-identical after every failure.
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 use std::process::{Command, Output};

@@ -1,6 +1,6 @@
 //! The G-code front end on real files: losslessness, filament totals, layer counts.
 
-mod common;
+use crate::common;
 
 use common::*;
 use printonair::gcode::LineReader;

@@ -1,6 +1,6 @@
 //! `poa FILE` as slicers run it, `poa process`, and what happens when things go wrong.
 
-mod common;
+use crate::common;
 
 use std::process::{Command, Output};
 
@@ -210,9 +210,12 @@ fn process_dry_run_report_and_object_filters() {
 
 #[test]
 fn end_to_end_through_prusaslicer() {
+    if !have_prusaslicer() {
+        return;
+    }
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("part with space.gcode");
-    let stl = shared().join("specimens/tri_overhang.stl");
+    let stl = part("tri_overhang");
     let config = repo().join("sample-gcode/config/prusaslicer-mk3s-pla.ini");
     // PrusaSlicer 2.5 drops the options of a quoted program path (measured): unquoted.
     let poa_cmd = format!("{} --fan 90", env!("CARGO_BIN_EXE_poa"));

@@ -1,6 +1,6 @@
 //! The `poa` binary as users and scripts call it.
 
-mod common;
+use crate::common;
 
 use std::process::{Command, Output};
 

@@ -1,6 +1,6 @@
 //! `poa ab`: the original and a shifted copy on one plate, Print-on-Air on the copy only.
 
-mod common;
+use crate::common;
 
 use printonair::check::{check_layer, CheckOptions};
 use printonair::layers::{filament_area, Layer, LayerKind};

@@ -1,6 +1,6 @@
 //! The Print-on-Air rewrite on the specimens, checked by simulating the deposition.
 
-mod common;
+use crate::common;
 
 use common::*;
 use geo::{Area, MultiPolygon};

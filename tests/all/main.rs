@@ -1,0 +1,20 @@
+//! poa's integration tests: one test binary, a module per topic (as ripgrep keeps its own).
+//! Tests that need a slicer, libbgcode's Python wrapper or the team's `../shared` folder skip
+//! with a printed note when it is absent (except under `CI`, where the slicer and the wrapper
+//! must be there); see `common`.
+
+mod common;
+
+mod ab;
+mod bgcode;
+mod bgcode_rewrite;
+mod cli;
+mod cura_script;
+mod estimate;
+mod faults;
+mod frontend;
+mod parts;
+mod properties;
+mod regions;
+mod rewrite;
+mod slicer_mode;
