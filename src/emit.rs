@@ -106,6 +106,8 @@ pub struct RewriteStats {
     /// Estimated time added (s), before acceleration: new strands and travel minus what the
     /// removed extrusion took.
     pub time_added_s: f64,
+    /// Of that, pauses after loops (`--dwell`), which the motion estimator does not see.
+    pub dwell_s: f64,
     /// Line before which the block was inserted (input numbering).
     pub inserted_before_line: u64,
 }
@@ -781,6 +783,7 @@ fn emit_block(
         {
             w.line(&format!("G4 P{}", fmt_num(settings.dwell * 1000.0, 0)));
             time += settings.dwell;
+            stats.dwell_s += settings.dwell;
         }
         last_loop = s.loop_index;
         // The width the E makes, by the flow model at this layer's height.
@@ -876,11 +879,30 @@ fn write_strand(w: &mut Writer<'_>, s: &Strand, per_mm: f64, stats: &mut Rewrite
 /// The comment poa writes near the top of every file it rewrote; its presence means "done".
 pub const HEADER_MARK: &str = "; poa print-on-air";
 
-/// Whether `head` (the first bytes of a file) shows that poa already rewrote it.
+/// Whether `head` (the first bytes of a file) shows that poa already rewrote it: poa's header
+/// line is line 2 of what it wrote, but lines may have been put before it since.
 pub fn already_processed(head: &[u8]) -> bool {
-    split_lines(head)
-        .take(60)
-        .any(|l| l.starts_with(HEADER_MARK.as_bytes()))
+    holds_header(head)
+}
+
+/// Whether any line of `text` is poa's header line.
+fn holds_header(text: &[u8]) -> bool {
+    let mark = HEADER_MARK.as_bytes();
+    text.starts_with(mark) || memchr::memmem::find_iter(text, mark).any(|i| text[i - 1] == b'\n')
+}
+
+/// The error [`process`] stops with when it meets poa's header line past the head of the
+/// file: the file was rewritten already, and nothing it wrote so far may be used.
+pub fn already_processed_error() -> io::Error {
+    io::Error::new(
+        io::ErrorKind::AlreadyExists,
+        "the file was already rewritten by poa",
+    )
+}
+
+/// Whether `e` is [`already_processed_error`].
+pub fn is_already_processed(e: &io::Error) -> bool {
+    e.kind() == io::ErrorKind::AlreadyExists
 }
 
 /// What `process` did to a file.
@@ -888,6 +910,8 @@ pub fn already_processed(head: &[u8]) -> bool {
 pub struct ProcessReport {
     /// The slicer that wrote the file, as detected.
     pub slicer: String,
+    /// The objects the file labels, in order of appearance.
+    pub objects: Vec<String>,
     pub regions_found: usize,
     pub regions_rewritten: usize,
     /// Regions left as the slicer made them, with the reason.
@@ -913,6 +937,27 @@ pub struct SkippedRegion {
     pub layer: usize,
     pub kind: RegionKind,
     pub reason: String,
+}
+
+/// The glob a pattern of [`ObjectFilter`] was made from.
+fn glob_of(r: &regex::Regex) -> String {
+    let re = r.as_str();
+    let inner = re.strip_prefix('^').unwrap_or(re);
+    let inner = inner.strip_suffix('$').unwrap_or(inner);
+    let mut out = String::new();
+    let mut chars = inner.chars().peekable();
+    while let Some(c) = chars.next() {
+        match c {
+            '.' if chars.peek() == Some(&'*') => {
+                chars.next();
+                out.push('*');
+            }
+            '.' => out.push('?'),
+            '\\' => out.extend(chars.next()),
+            c => out.push(c),
+        }
+    }
+    out
 }
 
 /// Which objects to rewrite, by the names the file labels them with.
@@ -941,6 +986,16 @@ impl ObjectFilter {
             only: only.iter().map(|g| conv(g)).collect::<Result<_, _>>()?,
             skip: skip.iter().map(|g| conv(g)).collect::<Result<_, _>>()?,
         })
+    }
+
+    /// The patterns of `--objects` and `--skip-objects` that match none of `names`, as given.
+    pub fn unmatched(&self, names: &[String]) -> Vec<String> {
+        self.only
+            .iter()
+            .chain(&self.skip)
+            .filter(|r| !names.iter().any(|n| r.is_match(n)))
+            .map(|r| glob_of(r))
+            .collect()
     }
 
     pub fn allows(&self, name: Option<&str>) -> bool {
@@ -988,6 +1043,9 @@ pub fn process<R: BufRead + Send, W: Write>(
     let mut names: Vec<String> = Vec::new();
     crate::geometry::detect(reader.by_ref(), &opts.detect, |d| {
         let mut layer = d.layer;
+        if holds_header(&layer.raw) {
+            return Err(already_processed_error());
+        }
         if let Some(n) = &layer.objects {
             names.clone_from(n);
         }
@@ -1058,8 +1116,11 @@ pub fn process<R: BufRead + Send, W: Write>(
             None
         } else {
             let (bytes, mut stats) = rewrite_layer(&layer, &rewrites, &motion, &opts.settings);
-            let added =
-                layer_time(&limits, &layer, &bytes) - layer_time(&limits, &layer, &layer.raw);
+            // The estimator plans motion only; the pauses poa wrote count on top.
+            let dwell: f64 = stats.iter().map(|s| s.dwell_s).sum();
+            let added = layer_time(&limits, &layer, &bytes)
+                - layer_time(&limits, &layer, &layer.raw)
+                + dwell;
             // The planner's time for the layer, shared out like the simple model's estimates.
             let simple: f64 = stats.iter().map(|s| s.time_added_s.max(0.0)).sum();
             let n = stats.len().max(1) as f64;
@@ -1116,6 +1177,7 @@ pub fn process<R: BufRead + Send, W: Write>(
         }
         Ok(())
     })?;
+    report.objects = names;
     report.filament_added_cm3 = report.filament_added_mm * filament_area / 1000.0;
     report.filament_added_g = report.filament_added_cm3 * density;
     if let Some(last) = held {

@@ -113,6 +113,22 @@ impl<'a> Parsed<'a> {
     }
 }
 
+/// Longest line poa reads. Slicers write lines of under a hundred bytes (thumbnails' base64 and
+/// Klipper's object polygons stay far below this); a longer one is damaged or hostile input,
+/// refused instead of held in memory.
+pub const MAX_LINE: usize = 16 << 20;
+
+/// The error for a line longer than [`MAX_LINE`].
+pub fn line_too_long(line: u64) -> io::Error {
+    io::Error::new(
+        io::ErrorKind::InvalidData,
+        format!(
+            "line {line} is longer than {} MiB, which no slicer writes; the file is damaged",
+            MAX_LINE >> 20
+        ),
+    )
+}
+
 /// Reads lines from any [`BufRead`] without losing a byte.
 pub struct LineReader<R> {
     inner: R,
@@ -131,9 +147,12 @@ impl<R: BufRead> LineReader<R> {
     /// end of input. Reusing one buffer keeps the hot loop free of allocations.
     pub fn read_into(&mut self, buf: &mut Vec<u8>) -> io::Result<Option<u64>> {
         buf.clear();
-        let n = self.inner.read_until(b'\n', buf)?;
+        let n = io::Read::take(&mut self.inner, MAX_LINE as u64 + 1).read_until(b'\n', buf)?;
         if n == 0 {
             return Ok(None);
+        }
+        if n > MAX_LINE {
+            return Err(line_too_long(self.next_number));
         }
         let number = self.next_number;
         self.next_number += 1;

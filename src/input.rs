@@ -6,7 +6,11 @@
 //! decoded in memory: the reader then yields its G-code text, the config comes from its
 //! metadata blocks, and [`Opened::binary`] keeps the decoded file so that a rewrite can be
 //! written back in the same format. Refuses, with a message saying what to do, what cannot be
-//! G-code: directories, damaged binary G-code, text files with binary data in their head.
+//! G-code: directories, devices, FIFOs and sockets (only regular files are read: `/dev/zero`
+//! would never end and a FIFO without a writer would block), damaged binary G-code, text files
+//! with binary data in their head, and text that holds no G-code command (an STL, OBJ or any
+//! other text file). The slicer settings poa uses are range-checked here, once, for every
+//! command. A file is read up to the size it had when opened.
 
 use std::fs::File;
 use std::io::{BufRead, BufReader, Cursor, Read, Seek, SeekFrom};
@@ -38,21 +42,39 @@ pub fn open(path: &Path) -> Result<Opened> {
         path: path.to_path_buf(),
         source,
     };
+    // stat does not block on a FIFO, so what is not a regular file is refused before opening.
     let meta = std::fs::metadata(path).map_err(read_err)?;
-    if meta.is_dir() {
-        return Err(Error::NotGcode {
-            path: path.to_path_buf(),
-            reason: "it is a directory; pass a .gcode file".into(),
-        });
-    }
-    let mut file = File::open(path).map_err(read_err)?;
+    check_regular(path, &meta)?;
+    // Non-blocking, so that a file swapped for a FIFO since cannot hang the open either; the
+    // opened file is checked again.
+    let file = {
+        use std::os::unix::fs::OpenOptionsExt;
+        std::fs::OpenOptions::new()
+            .read(true)
+            .custom_flags(libc::O_NONBLOCK)
+            .open(path)
+            .map_err(read_err)?
+    };
+    let meta = file.metadata().map_err(read_err)?;
+    check_regular(path, &meta)?;
     let size = meta.len();
+    let mut file = file;
     let mut head = vec![0u8; HEAD_BYTES.min(size) as usize];
     file.read_exact(&mut head).map_err(read_err)?;
     if bgcode::is_bgcode(&head) {
         return open_binary(path, file, size);
     }
     check_text(path, &head)?;
+    // An empty file is read as zero layers (and stays empty), not refused.
+    if size > 0 {
+        check_has_commands(&mut file, &head, size).map_err(|e| match e {
+            CommandScan::Io(source) => read_err(source),
+            CommandScan::None(reason) => Error::NotGcode {
+                path: path.to_path_buf(),
+                reason,
+            },
+        })?;
+    }
     let mut config = SlicerConfig::parse(&head);
     if size > HEAD_BYTES {
         let start = size.saturating_sub(TAIL_BYTES).max(HEAD_BYTES);
@@ -62,14 +84,34 @@ pub fn open(path: &Path) -> Result<Opened> {
         config.add_text(&tail);
     }
     config.apply_env(std::env::vars());
+    config.check().map_err(Error::Invalid)?;
     file.seek(SeekFrom::Start(0)).map_err(read_err)?;
     Ok(Opened {
-        reader: Box::new(BufReader::with_capacity(READ_BUFFER, file)),
+        // Up to the size it had: a file that keeps growing is not read forever.
+        reader: Box::new(BufReader::with_capacity(READ_BUFFER, file.take(size))),
         head,
         config,
         size,
         binary: None,
     })
+}
+
+/// Reads a whole regular file (up to the size it had when opened), refusing devices, FIFOs
+/// and folders as [`open`] does.
+pub fn read_all(path: &Path) -> Result<Vec<u8>> {
+    let read_err = |source| Error::Read {
+        path: path.to_path_buf(),
+        source,
+    };
+    check_regular(path, &std::fs::metadata(path).map_err(read_err)?)?;
+    let file = File::open(path).map_err(read_err)?;
+    let meta = file.metadata().map_err(read_err)?;
+    check_regular(path, &meta)?;
+    let mut data = Vec::with_capacity(meta.len() as usize);
+    file.take(meta.len())
+        .read_to_end(&mut data)
+        .map_err(read_err)?;
+    Ok(data)
 }
 
 /// Decodes a binary G-code file; the pipeline reads its G-code text.
@@ -80,7 +122,7 @@ fn open_binary(path: &Path, mut file: File, size: u64) -> Result<Opened> {
     };
     file.seek(SeekFrom::Start(0)).map_err(read_err)?;
     let mut data = Vec::with_capacity(size as usize);
-    file.read_to_end(&mut data).map_err(read_err)?;
+    file.take(size).read_to_end(&mut data).map_err(read_err)?;
     let decoded = bgcode::decode(&data).map_err(|e| Error::NotGcode {
         path: path.to_path_buf(),
         reason: format!("the binary G-code is damaged: {e}; export it again"),
@@ -102,6 +144,7 @@ fn open_binary(path: &Path, mut file: File, size: u64) -> Result<Opened> {
     let head_len = text.len().min(HEAD_BYTES as usize);
     config.add_text(&text[..head_len]);
     config.apply_env(std::env::vars());
+    config.check().map_err(Error::Invalid)?;
     let head = text[..head_len].to_vec();
     Ok(Opened {
         reader: Box::new(Cursor::new(text)),
@@ -127,4 +170,111 @@ pub fn check_text(path: &Path, head: &[u8]) -> Result<()> {
         });
     }
     Ok(())
+}
+
+/// Refuses what is not a regular file, naming what it is.
+fn check_regular(path: &Path, meta: &std::fs::Metadata) -> Result<()> {
+    use std::os::unix::fs::FileTypeExt;
+    let t = meta.file_type();
+    let what = if t.is_file() {
+        return Ok(());
+    } else if t.is_dir() {
+        "a directory"
+    } else if t.is_fifo() {
+        "a pipe (FIFO)"
+    } else if t.is_char_device() || t.is_block_device() {
+        "a device"
+    } else if t.is_socket() {
+        "a socket"
+    } else {
+        "not a regular file"
+    };
+    Err(Error::NotGcode {
+        path: path.to_path_buf(),
+        reason: format!("it is {what}; save the G-code to a file and pass that file"),
+    })
+}
+
+/// How far into a file the first G-code command is looked for. Comment lines do not count
+/// against [`COMMAND_SCAN`] (thumbnails and long headers come before the first command), up
+/// to [`COMMENT_SCAN`] bytes of them.
+const COMMAND_SCAN: u64 = 64 * 1024;
+const COMMENT_SCAN: u64 = 32 << 20;
+
+enum CommandScan {
+    Io(std::io::Error),
+    None(String),
+}
+
+/// Whether a line is a G-code command: `G`, `M` or `T` and a digit, after an optional `N`
+/// line number.
+fn is_command(line: &[u8]) -> bool {
+    let mut l = line.trim_ascii_start();
+    if let Some(rest) = l.strip_prefix(b"N").or_else(|| l.strip_prefix(b"n")) {
+        let digits = rest.iter().take_while(|b| b.is_ascii_digit()).count();
+        if digits > 0 {
+            l = rest[digits..].trim_ascii_start();
+        }
+    }
+    matches!(l, [b'G' | b'g' | b'M' | b'm' | b'T' | b't', d, ..] if d.is_ascii_digit())
+}
+
+/// Refuses text that is not G-code: a known model format by its signature, or no G/M/T command
+/// in the first [`COMMAND_SCAN`] bytes of non-comment text. The file is left at an unknown
+/// position; the caller seeks back.
+fn check_has_commands(
+    file: &mut File,
+    head: &[u8],
+    size: u64,
+) -> std::result::Result<(), CommandScan> {
+    let start = head.trim_ascii_start();
+    let lower: Vec<u8> = start.iter().take(512).map(u8::to_ascii_lowercase).collect();
+    if lower.starts_with(b"solid") && memchr::memmem::find(&lower, b"facet").is_some() {
+        return Err(CommandScan::None(
+            "it is an STL model; slice it first and pass the G-code".into(),
+        ));
+    }
+    if head.starts_with(b"PK\x03\x04") {
+        return Err(CommandScan::None(
+            "it is a zip archive (a 3MF project?); export G-code from the slicer and pass that"
+                .into(),
+        ));
+    }
+    file.seek(SeekFrom::Start(0)).map_err(CommandScan::Io)?;
+    let mut reader = BufReader::with_capacity(64 * 1024, (&*file).take(size));
+    let (mut code, mut comments) = (0u64, 0u64);
+    let mut line = Vec::new();
+    loop {
+        line.clear();
+        let n = (&mut reader)
+            .take(COMMAND_SCAN + 1)
+            .read_until(b'\n', &mut line)
+            .map_err(CommandScan::Io)?;
+        if n == 0 {
+            break;
+        }
+        let t = line.trim_ascii();
+        if t.starts_with(b";") || t.starts_with(b"(") || t.is_empty() {
+            comments += n as u64;
+            if comments > COMMENT_SCAN {
+                break;
+            }
+            continue;
+        }
+        if is_command(t) {
+            return Ok(());
+        }
+        code += n as u64;
+        if code > COMMAND_SCAN {
+            break;
+        }
+    }
+    let obj = head
+        .split(|&b| b == b'\n')
+        .any(|l| l.starts_with(b"v ") || l.starts_with(b"vn ") || l.starts_with(b"f "));
+    Err(CommandScan::None(if obj && size > 0 {
+        "it looks like an OBJ model, not G-code; slice it first and pass the G-code".into()
+    } else {
+        "it holds no G-code command (G, M or T); pass the G-code file the slicer exported".into()
+    }))
 }

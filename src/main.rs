@@ -315,21 +315,102 @@ impl DetectArgs {
 
 fn main() -> ExitCode {
     bound_heap();
-    let cli = Cli::parse();
+    let cli = match parse_args() {
+        Ok(cli) => cli,
+        Err(code) => return code,
+    };
     match run(cli) {
         Ok(code) => code,
         // A reader that stopped early (`poa analyze x | head`) is not an error.
         Err(e)
-            if e.downcast_ref::<std::io::Error>()
-                .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe) =>
+            if e.chain().any(|c| {
+                c.downcast_ref::<std::io::Error>()
+                    .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)
+            }) =>
         {
             ExitCode::SUCCESS
         }
         Err(e) => {
-            eprintln!("poa: {e:#}");
+            eprintln!("poa: {}", error_text(&e));
             ExitCode::from(1)
         }
     }
+}
+
+/// The error and its causes, each said once (a library error often states its cause in its
+/// own message already).
+fn error_text(e: &anyhow::Error) -> String {
+    let mut text = String::new();
+    for cause in e.chain() {
+        let c = cause.to_string();
+        if !text.contains(&c) {
+            if !text.is_empty() {
+                text.push_str(": ");
+            }
+            text.push_str(&c);
+        }
+    }
+    text
+}
+
+/// Parses the command line. Usage errors get poa's prefix and fit in two lines (a slicer shows
+/// them in a small dialog); a mistyped command name gets a suggestion instead of being taken
+/// for the G-code file of slicer mode.
+fn parse_args() -> Result<Cli, ExitCode> {
+    use clap::CommandFactory;
+    let args: Vec<std::ffi::OsString> = std::env::args_os().collect();
+    let names: Vec<String> = Cli::command()
+        .get_subcommands()
+        .map(|c| c.get_name().to_string())
+        .collect();
+    if let Some(first) = args.get(1).and_then(|a| a.to_str()) {
+        let looks_like_command = !first.starts_with('-')
+            && !first.contains(['.', '/'])
+            && !std::path::Path::new(first).exists()
+            && !names.iter().any(|n| n == first);
+        if looks_like_command {
+            let best = names
+                .iter()
+                .map(|n| (strsim::damerau_levenshtein(first, n), n))
+                .min()
+                .filter(|(d, n)| *d <= 2.max(n.len() / 3));
+            let hint = match best {
+                Some((_, n)) => format!("did you mean `poa {n}`?"),
+                None => format!("commands: {}", names.join(", ")),
+            };
+            eprintln!("poa: `{first}` is neither a command nor a file; {hint}");
+            return Err(ExitCode::from(2));
+        }
+    }
+    Cli::try_parse_from(&args).map_err(|e| {
+        use clap::error::ErrorKind;
+        if matches!(
+            e.kind(),
+            ErrorKind::DisplayHelp
+                | ErrorKind::DisplayVersion
+                | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand
+        ) {
+            let _ = e.print();
+            return ExitCode::from(if e.use_stderr() { 2 } else { 0 });
+        }
+        let text = e.render().to_string();
+        let mut lines = text.lines().map(str::trim).filter(|l| !l.is_empty());
+        let first = lines.next().unwrap_or("bad arguments");
+        let first = first.strip_prefix("error: ").unwrap_or(first);
+        // "the following required arguments were not provided:" names them on the next line.
+        let first = match first.strip_suffix(':') {
+            Some(head) => format!("{head}: {}", lines.next().unwrap_or("")),
+            None => first.to_string(),
+        };
+        let tip = lines
+            .find(|l| l.starts_with("tip:"))
+            .map(|t| format!("{t}; "))
+            .unwrap_or_default();
+        eprintln!(
+            "poa: {first}\n  {tip}usage: poa [OPTIONS] FILE, or poa COMMAND ... (poa --help)"
+        );
+        ExitCode::from(2)
+    })
 }
 
 fn write_stdout(text: &str) -> anyhow::Result<()> {
@@ -408,10 +489,8 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             output: out,
             preset,
         } => {
-            let data = std::fs::read(&input).map_err(|source| printonair::Error::Read {
-                path: input.clone(),
-                source,
-            })?;
+            output::check_not_input(&out, &[&input])?;
+            let data = input::read_all(&input)?;
             let bytes = if printonair::bgcode::is_bgcode(&data) {
                 let decoded =
                     printonair::bgcode::decode(&data).map_err(|e| printonair::Error::NotGcode {
@@ -428,14 +507,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                     .map_err(|e| anyhow::anyhow!("{}: {e}", input.display()))?;
                 printonair::bgcode::encode(&file)
             };
-            output::write_atomic(&out, |w| {
-                use std::io::Write;
-                w.write_all(&bytes)
-                    .map_err(|source| printonair::Error::Write {
-                        path: out.clone(),
-                        source,
-                    })
-            })?;
+            output::write_bytes(&out, &[&input], &bytes)?;
             Ok(ExitCode::SUCCESS)
         }
         Command::Profiles { action } => {
@@ -513,6 +585,11 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                 "--overlap-min must be between 0 and 0.5"
             );
             anyhow::ensure!(max_bridge >= 0.0, "--max-bridge must be 0 or more");
+            if let Some(out) = &svg_out {
+                let mut inputs = vec![file.as_path()];
+                inputs.extend(compare.as_deref());
+                output::check_not_input(out, &inputs)?;
+            }
             let opened = input::open(&file)?;
             let opts = printonair::check::CheckOptions {
                 overlap_min,
@@ -542,7 +619,9 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                 let Some(svg) = svg else {
                     anyhow::bail!("{} has no layer {n}", file.display());
                 };
-                write_file(&out, &svg)?;
+                let mut inputs = vec![file.as_path()];
+                inputs.extend(compare.as_deref());
+                write_file(&out, &inputs, &svg)?;
             }
             if let Some(orig) = compare {
                 let o = input::open(&orig)?;
@@ -553,7 +632,11 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             } else {
                 emit(&rep, json)?;
             }
-            if fail_in_air.is_some_and(|limit| in_air > limit) {
+            if let Some(limit) = fail_in_air.filter(|limit| in_air > *limit) {
+                eprintln!(
+                    "poa: {} prints {in_air:.1} mm in air, more than --fail-in-air {limit} mm",
+                    file.display()
+                );
                 return Ok(ExitCode::from(2));
             }
             Ok(ExitCode::SUCCESS)
@@ -565,6 +648,11 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             output,
             detect,
         } => {
+            if regions {
+                check_regions_folder(&output, &file)?;
+            } else {
+                output::check_not_input(&output, &[&file])?;
+            }
             let opened = input::open(&file)?;
             let opts = detect.options(&opened.config)?;
             let title = file
@@ -584,9 +672,9 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                     source,
                 })?;
                 for (name, svg) in &previews.layers {
-                    write_file(&output.join(name), svg)?;
+                    write_file(&output.join(name), &[&file], svg)?;
                 }
-                write_file(&output.join("index.html"), &previews.index)?;
+                write_file(&output.join("index.html"), &[&file], &previews.index)?;
                 eprintln!(
                     "poa: {} layer{} with regions drawn; open {}",
                     previews.layers.len(),
@@ -602,18 +690,20 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                         file.display()
                     );
                 };
-                write_file(&output, &svg)?;
+                write_file(&output, &[&file], &svg)?;
             }
             Ok(ExitCode::SUCCESS)
         }
     }
 }
 
-fn write_file(path: &std::path::Path, text: &str) -> anyhow::Result<()> {
-    std::fs::write(path, text).map_err(|source| printonair::Error::Write {
-        path: path.to_path_buf(),
-        source,
-    })?;
+/// Writes an output file atomically, refusing to write over any of `inputs`.
+fn write_file(
+    path: &std::path::Path,
+    inputs: &[&std::path::Path],
+    text: &str,
+) -> anyhow::Result<()> {
+    output::write_bytes(path, inputs, text.as_bytes())?;
     Ok(())
 }
 
@@ -641,6 +731,7 @@ fn ab_command(
 ) -> anyhow::Result<ExitCode> {
     use std::io::Read;
     let d = parse_numbers(offset, 2, "--offset")?;
+    output::check_not_input(out, &[file])?;
     let bed = bed
         .map(|b| parse_numbers(b, 4, "--bed").map(|v| [v[0], v[1], v[2], v[3]]))
         .transpose()?;
@@ -719,14 +810,7 @@ fn ab_command(
         }
         None => result,
     };
-    output::write_atomic(out, |w| {
-        use std::io::Write;
-        w.write_all(&bytes)
-            .map_err(|source| printonair::Error::Write {
-                path: out.to_path_buf(),
-                source,
-            })
-    })?;
+    output::write_bytes(out, &[file], &bytes)?;
     write_stdout(&format!(
         "{}: A/B plate with the copy `{}` shifted by {},{} mm on {} layers; {} region(s) of the copy rewritten with {} loops\n",
         out.display(),
@@ -774,11 +858,12 @@ fn bound_heap() {
     }
 }
 
-/// Rewrites one file into `dest` (which may be the file itself). Returns `None` when the file
-/// was already rewritten by poa and is left as it is.
+/// Rewrites one file into `dest` (which may be the file itself), refusing to write over any of
+/// `inputs`. Returns `None` when the file was already rewritten by poa and is left as it is.
 fn rewrite_file(
     file: &std::path::Path,
     dest: Option<&std::path::Path>,
+    inputs: &[&std::path::Path],
     args: &RewriteArgs,
     progress: bool,
 ) -> anyhow::Result<Option<ProcessReport>> {
@@ -796,13 +881,42 @@ fn rewrite_file(
         path: file.to_path_buf(),
         source,
     };
+    // Reading and writing share the stream; say which side failed.
+    let stream_err = |e: std::io::Error, dest: &std::path::Path| -> printonair::Error {
+        if matches!(
+            e.kind(),
+            std::io::ErrorKind::Other
+                | std::io::ErrorKind::InvalidData
+                | std::io::ErrorKind::AlreadyExists
+        ) {
+            read_err(e)
+        } else {
+            printonair::Error::Write {
+                path: dest.to_path_buf(),
+                source: e,
+            }
+        }
+    };
+    let filter_err = |report: &ProcessReport| -> printonair::error::Result<()> {
+        object_filter_matches(file, report, &opts.objects).map_err(printonair::Error::Invalid)
+    };
     let opened_binary = opened.binary;
-    let report = match (dest, opened_binary.clone()) {
-        (Some(dest), Some(binary)) => {
+    if let (Some(dest), Some(_)) = (dest, &opened_binary) {
+        if dest != file && dest.extension().is_none_or(|e| e != "bgcode") {
+            eprintln!(
+                "poa: note: {} is binary G-code, so {} is written as binary G-code too (PrusaSlicer names such files .bgcode; `poa convert` makes text)",
+                file.display(),
+                dest.display()
+            );
+        }
+    }
+    let result = match (dest, opened_binary) {
+        (Some(dest), Some(binary)) => (|| -> printonair::error::Result<ProcessReport> {
             // Binary G-code: rewrite the text in memory, then encode it as the input was.
             let mut text = Vec::new();
-            let report =
-                emit::process(reader, opened.config, &opts, &mut text).map_err(read_err)?;
+            let report = emit::process(reader, opened.config, &opts, &mut text)
+                .map_err(|e| stream_err(e, dest))?;
+            filter_err(&report)?;
             if needs_progress_update(&report, args) {
                 let mut fixed = Vec::with_capacity(text.len());
                 printonair::progress::update(&text[..], &mut fixed, &report.progress, totals)
@@ -810,32 +924,20 @@ fn rewrite_file(
                 text = fixed;
             }
             let mut updated = printonair::bgcode::with_gcode(&binary, &text);
+            drop(text);
             emit::update_binary_metadata(&mut updated, &report);
             let bytes = printonair::bgcode::encode(&updated);
-            output::write_atomic(dest, |w| {
-                use std::io::Write;
-                w.write_all(&bytes)
-                    .map_err(|source| printonair::Error::Write {
-                        path: dest.to_path_buf(),
-                        source,
-                    })
-            })?;
-            report
-        }
+            output::write_bytes(dest, inputs, &bytes)?;
+            Ok(report)
+        })(),
         (Some(dest), None) => output::write_atomic_twice(
             dest,
+            inputs,
             |w| {
-                emit::process(reader, opened.config, &opts, w).map_err(|e| {
-                    // Reading and writing share the stream; say which side failed.
-                    if e.kind() == std::io::ErrorKind::Other {
-                        read_err(e)
-                    } else {
-                        printonair::Error::Write {
-                            path: dest.to_path_buf(),
-                            source: e,
-                        }
-                    }
-                })
+                let report = emit::process(reader, opened.config, &opts, w)
+                    .map_err(|e| stream_err(e, dest))?;
+                filter_err(&report)?;
+                Ok(report)
             },
             |report| needs_progress_update(report, args),
             // The progress lines precede the layers that added time: a second pass over the
@@ -848,10 +950,18 @@ fn rewrite_file(
                         source,
                     })
             },
-        )?,
-        (None, _) => {
-            emit::process(reader, opened.config, &opts, &mut std::io::sink()).map_err(read_err)?
+        ),
+        (None, _) => emit::process(reader, opened.config, &opts, &mut std::io::sink())
+            .map_err(read_err)
+            .and_then(|r| filter_err(&r).map(|_| r)),
+    };
+    let report = match result {
+        Ok(r) => r,
+        // poa's header line past the head of the file: rewritten before, nothing written now.
+        Err(printonair::Error::Read { source, .. }) if emit::is_already_processed(&source) => {
+            return Ok(None)
         }
+        Err(e) => return Err(e.into()),
     };
     if args.verbose {
         let mut t = String::new();
@@ -875,6 +985,33 @@ fn rewrite_file(
         write_stdout(&t)?;
     }
     Ok(Some(report))
+}
+
+/// `--objects` / `--skip-objects` patterns must each name an object of the file: a typo would
+/// otherwise rewrite nothing (or everything) without a word.
+fn object_filter_matches(
+    file: &std::path::Path,
+    report: &ProcessReport,
+    filter: &ObjectFilter,
+) -> Result<(), String> {
+    let missing = filter.unmatched(&report.objects);
+    if missing.is_empty() {
+        return Ok(());
+    }
+    let objects = if report.objects.is_empty() {
+        "it labels no objects".to_string()
+    } else {
+        format!("its objects: {}", report.objects.join(", "))
+    };
+    Err(format!(
+        "object pattern {} matches no object of {}; {objects} (`poa info` lists them)",
+        missing
+            .iter()
+            .map(|m| format!("`{m}`"))
+            .collect::<Vec<_>>()
+            .join(", "),
+        file.display()
+    ))
 }
 
 /// Counts what the pipeline reads and shows it as a progress bar on stderr, only when stderr
@@ -931,11 +1068,43 @@ impl<R> Drop for Progress<R> {
     }
 }
 
-/// `poa [OPTIONS] FILE`: what a slicer runs. Quiet on success (the slicer shows stdout only in
-/// its log); one or two lines on stderr on failure, with the file untouched.
+/// `poa [OPTIONS] FILE`: what a slicer runs. Quiet on success when a slicer runs it (it
+/// captures stdout), one summary line on a terminal; one or two lines on stderr on failure,
+/// with the file untouched.
 fn slicer_mode(file: &std::path::Path, args: &RewriteArgs) -> anyhow::Result<ExitCode> {
-    rewrite_file(file, Some(file), args, true)?;
+    use std::io::IsTerminal;
+    // A killed run's temporary files go even when there is nothing to do this time.
+    output::remove_stale_temps(file);
+    let report = rewrite_file(file, Some(file), &[], args, true)?;
+    if std::io::stdout().is_terminal() {
+        write_stdout(&summary_line(file, report.as_ref(), false))?;
+    }
     Ok(ExitCode::SUCCESS)
+}
+
+/// One line saying what a rewrite did to `file`.
+fn summary_line(file: &std::path::Path, report: Option<&ProcessReport>, dry_run: bool) -> String {
+    let Some(r) = report else {
+        return format!(
+            "{}: already processed by poa; left unchanged\n",
+            file.display()
+        );
+    };
+    format!(
+        "{}: {} region{} found, {} rewritten with {} loops; filament {:+.1} mm, time {:+.0} s{}\n",
+        file.display(),
+        r.regions_found,
+        if r.regions_found == 1 { "" } else { "s" },
+        r.regions_rewritten,
+        r.loops,
+        r.filament_added_mm,
+        r.time_added_s,
+        if dry_run {
+            " (dry run: nothing written)"
+        } else {
+            ""
+        }
+    )
 }
 
 fn process_command(
@@ -952,14 +1121,6 @@ fn process_command(
     if output.is_none() && out_dir.is_none() && !dry_run {
         anyhow::bail!("say where to write: -o OUT, --out-dir DIR, or --dry-run");
     }
-    if let Some(dir) = out_dir.as_ref() {
-        if !dry_run {
-            std::fs::create_dir_all(dir).map_err(|source| printonair::Error::Write {
-                path: dir.clone(),
-                source,
-            })?;
-        }
-    }
     let dest_of = |file: &PathBuf| -> Option<PathBuf> {
         if dry_run {
             None
@@ -971,6 +1132,45 @@ fn process_command(
                 .map(|d| d.join(file.file_name().unwrap_or_default()))
         }
     };
+    // Everything that could overwrite an input, or two results landing in one file, is
+    // refused before any work.
+    let inputs: Vec<&std::path::Path> = files.iter().map(PathBuf::as_path).collect();
+    let mut taken: std::collections::HashMap<PathBuf, &PathBuf> = Default::default();
+    for file in files {
+        let Some(d) = dest_of(file) else { continue };
+        if output::same_file(file, &d) {
+            anyhow::bail!(
+                "{} is the input {} itself; use slicer mode (poa FILE) to rewrite in place",
+                d.display(),
+                file.display()
+            );
+        }
+        output::check_not_input(&d, &inputs)?;
+        if let Some(other) = taken.insert(d.clone(), file) {
+            anyhow::bail!(
+                "{} and {} would both be written to {}; process them in separate runs or rename one",
+                other.display(),
+                file.display(),
+                d.display()
+            );
+        }
+    }
+    if let Some(p) = &report_path {
+        output::check_not_input(p, &inputs)?;
+        anyhow::ensure!(
+            !taken.keys().any(|d| d == p || output::same_file(d, p)),
+            "--report {} is also a G-code output; give the report its own name",
+            p.display()
+        );
+    }
+    if let Some(dir) = out_dir.as_ref() {
+        if !dry_run {
+            std::fs::create_dir_all(dir).map_err(|source| printonair::Error::Write {
+                path: dir.clone(),
+                source,
+            })?;
+        }
+    }
     // Every file is tried, on all cores; one bad file does not stop the others.
     let outcomes: Vec<(PathBuf, Result<Option<ProcessReport>, String>)> = {
         use rayon::prelude::*;
@@ -979,25 +1179,15 @@ fn process_command(
             .map(|file| {
                 let dest = dest_of(file);
                 let result = (|| -> anyhow::Result<Option<ProcessReport>> {
-                    if let Some(d) = &dest {
-                        anyhow::ensure!(
-                            !same_file(file, d),
-                            "{} is the input itself; use slicer mode (poa FILE) to rewrite in place",
-                            d.display()
-                        );
-                    }
-                    let r = rewrite_file(file, dest.as_deref(), args, files.len() == 1)?;
+                    let r = rewrite_file(file, dest.as_deref(), &inputs, args, files.len() == 1)?;
                     if r.is_none() {
                         if let Some(d) = &dest {
-                            std::fs::copy(file, d).map_err(|source| printonair::Error::Write {
-                                path: d.clone(),
-                                source,
-                            })?;
+                            copy_file(file, d, &inputs)?;
                         }
                     }
                     Ok(r)
                 })();
-                (file.clone(), result.map_err(|e| format!("{e:#}")))
+                (file.clone(), result.map_err(|e| error_text(&e)))
             })
             .collect()
     };
@@ -1025,29 +1215,13 @@ fn process_command(
                     if dry_run { "dry run" } else { "ok" }
                 ));
             }
-            Ok(Some(r)) => {
-                text.push_str(&format!(
-                    "{}: {} region{} found, {} rewritten with {} loops; filament {:+.1} mm, time {:+.0} s{}\n",
-                    file.display(),
-                    r.regions_found,
-                    if r.regions_found == 1 { "" } else { "s" },
-                    r.regions_rewritten,
-                    r.loops,
-                    r.filament_added_mm,
-                    r.time_added_s,
-                    if dry_run { " (dry run: nothing written)" } else { "" }
-                ));
-                if !args.verbose {
+            Ok(r) => {
+                text.push_str(&summary_line(file, r.as_ref(), dry_run));
+                if let (Some(r), false) = (r, args.verbose) {
                     for s in &r.skipped {
                         text.push_str(&format!("  {}\n", skipped_line(s)));
                     }
                 }
-            }
-            Ok(None) => {
-                text.push_str(&format!(
-                    "{}: already processed by poa; left unchanged\n",
-                    file.display()
-                ));
             }
             Err(e) => {
                 failed += 1;
@@ -1067,13 +1241,49 @@ fn process_command(
     write_stdout(&text)?;
     if let Some(p) = report_path {
         let text = serde_json::to_string_pretty(&serde_json::json!({ "files": reports }))?;
-        write_file(&p, &text)?;
+        write_file(&p, &inputs, &text)?;
     }
     Ok(if failed > 0 {
         ExitCode::from(1)
     } else {
         ExitCode::SUCCESS
     })
+}
+
+/// Copies `file` to `dest` as it is (a file poa rewrote before), atomically.
+fn copy_file(
+    file: &std::path::Path,
+    dest: &std::path::Path,
+    inputs: &[&std::path::Path],
+) -> anyhow::Result<()> {
+    let mut src = std::fs::File::open(file).map_err(|source| printonair::Error::Read {
+        path: file.to_path_buf(),
+        source,
+    })?;
+    output::write_atomic(dest, inputs, |w| {
+        std::io::copy(&mut src, w)
+            .map(|_| ())
+            .map_err(|source| printonair::Error::Write {
+                path: dest.to_path_buf(),
+                source,
+            })
+    })?;
+    Ok(())
+}
+
+/// `preview --regions -o DIR` writes a folder: refuse a path that is a file, or that names
+/// one (`r.svg`), instead of making a folder of that name.
+fn check_regions_folder(dir: &std::path::Path, input: &std::path::Path) -> anyhow::Result<()> {
+    output::check_not_input(dir, &[input])?;
+    let looks_like_file = dir
+        .extension()
+        .is_some_and(|e| ["svg", "html", "htm", "gcode"].contains(&e.to_string_lossy().as_ref()));
+    anyhow::ensure!(
+        !(dir.exists() && !dir.is_dir()) && !looks_like_file,
+        "--regions writes a folder of SVG files and an index.html; -o {} is a file name (use --layer N -o FILE.svg for one layer)",
+        dir.display()
+    );
+    Ok(())
 }
 
 fn skipped_line(s: &emit::SkippedRegion) -> String {
@@ -1084,11 +1294,4 @@ fn skipped_line(s: &emit::SkippedRegion) -> String {
         s.kind.name(),
         s.reason
     )
-}
-
-fn same_file(a: &std::path::Path, b: &std::path::Path) -> bool {
-    match (std::fs::canonicalize(a), std::fs::canonicalize(b)) {
-        (Ok(x), Ok(y)) => x == y,
-        _ => false,
-    }
 }

@@ -1,44 +1,199 @@
 //! Writing a file without ever losing the user's print.
 //!
-//! Input: a destination path and a closure that writes the content. Output: the destination
-//! replaced atomically: the content goes to a temporary file in the same folder, is flushed
-//! and fsync'ed, then renamed over the destination. On any error the temporary file is
-//! removed and the destination is untouched.
+//! Input: a destination path, the paths of the run's inputs, and a closure that writes the
+//! content. Output: the destination holding exactly what the closure wrote, or, on any error,
+//! the destination as it was and no file left behind.
+//!
+//! Invariants:
+//! - a destination that is one of the inputs (under any name: the same device and inode, so
+//!   hard links and symlinks count) is refused before anything is written;
+//! - a regular destination (or a new one) is replaced atomically: the content goes to a
+//!   temporary file beside it, created with `O_EXCL` under a name no other run can pick
+//!   (process id and a random suffix), is fsync'ed, then renamed over it; a symlink to a
+//!   regular file keeps being a link (the file it points to is replaced);
+//! - a destination that is not a regular file (`/dev/null`, a terminal, a FIFO) is written
+//!   through and never renamed over or removed;
+//! - a temporary file is removed only by the run that made it, or later when the process that
+//!   made it is gone; a run never removes another live run's file.
 
 use std::fs::{self, File, OpenOptions};
-use std::io::{self, BufWriter};
+use std::io::{self, BufWriter, Write};
 use std::path::{Path, PathBuf};
 
 use crate::error::{Error, Result};
 
-/// Temporary files are named `.NAME.poa-tmp-PID` beside the destination.
-pub fn temp_path(dest: &Path) -> PathBuf {
+/// Marks poa's temporary files: `.NAME.poa-tmp-PID-RANDOM`.
+const TEMP_MARK: &str = ".poa-tmp-";
+/// Longest part of the destination's name kept in a temporary name: file names are at most
+/// 255 bytes, and the mark, a process id and the random suffix need room.
+const NAME_BYTES: usize = 200;
+
+/// A file's identity: the same for every name (hard link, symlink, relative path) of one file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FileId {
+    dev: u64,
+    ino: u64,
+}
+
+impl FileId {
+    /// The identity of the file `path` names (following symlinks), if it exists.
+    pub fn of(path: &Path) -> Option<FileId> {
+        use std::os::unix::fs::MetadataExt;
+        fs::metadata(path).ok().map(|m| FileId {
+            dev: m.dev(),
+            ino: m.ino(),
+        })
+    }
+}
+
+/// Whether `a` and `b` name the same existing file.
+pub fn same_file(a: &Path, b: &Path) -> bool {
+    matches!((FileId::of(a), FileId::of(b)), (Some(x), Some(y)) if x == y)
+}
+
+/// Refuses a destination that is one of `inputs`.
+pub fn check_not_input(dest: &Path, inputs: &[&Path]) -> Result<()> {
+    if let Some(input) = inputs.iter().find(|i| same_file(dest, i)) {
+        let same = if dest == *input {
+            String::new()
+        } else {
+            format!(" ({} under another name)", input.display())
+        };
+        return Err(Error::Invalid(format!(
+            "refusing to write {}: it is an input of this run{same}; choose another output file",
+            dest.display()
+        )));
+    }
+    Ok(())
+}
+
+/// Where the content goes.
+enum Target {
+    /// A regular or new file, replaced by renaming a temporary file over it.
+    Replace(PathBuf),
+    /// A device, FIFO or terminal: written through, never renamed over.
+    Through(PathBuf),
+}
+
+fn target(dest: &Path, inputs: &[&Path]) -> Result<Target> {
+    check_not_input(dest, inputs)?;
+    match fs::metadata(dest) {
+        Ok(meta) if meta.is_dir() => Err(Error::Invalid(format!(
+            "cannot write {}: it is a folder; give a file name",
+            dest.display()
+        ))),
+        Ok(meta) if !meta.is_file() => Ok(Target::Through(dest.to_path_buf())),
+        // A symlink stays a link: the file it points to is what gets replaced.
+        Ok(_) => Ok(Target::Replace(
+            fs::canonicalize(dest).unwrap_or_else(|_| dest.to_path_buf()),
+        )),
+        Err(_) => Ok(Target::Replace(dest.to_path_buf())),
+    }
+}
+
+fn dir_of(path: &Path) -> PathBuf {
+    match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    }
+}
+
+/// `.NAME.poa-tmp-`, with NAME cut to [`NAME_BYTES`] on a character boundary.
+fn temp_prefix(dest: &Path) -> String {
     let name = dest
         .file_name()
         .map(|n| n.to_string_lossy().to_string())
         .unwrap_or_else(|| "out".into());
-    let tmp = format!(".{name}.poa-tmp-{}", std::process::id());
-    match dest.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p.join(tmp),
-        _ => PathBuf::from(tmp),
+    let mut cut = name.len().min(NAME_BYTES);
+    while !name.is_char_boundary(cut) {
+        cut -= 1;
+    }
+    format!(".{}{TEMP_MARK}", &name[..cut])
+}
+
+fn random_suffix() -> u64 {
+    use std::hash::BuildHasher;
+    use std::sync::atomic::{AtomicU64, Ordering};
+    static COUNTER: AtomicU64 = AtomicU64::new(0);
+    let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+    let now = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos());
+    // RandomState is seeded from the OS per process: different in every run.
+    std::collections::hash_map::RandomState::new().hash_one((n, now, std::process::id()))
+}
+
+/// A temporary file this run owns: removed on drop unless it was renamed into place.
+struct Temp {
+    path: PathBuf,
+    live: bool,
+}
+
+impl Temp {
+    /// Creates a fresh temporary file in `dir` for `dest`, never reusing an existing name.
+    fn create(dir: &Path, dest: &Path) -> io::Result<(Temp, File)> {
+        let prefix = temp_prefix(dest);
+        let mut last = None;
+        for _ in 0..16 {
+            let path = dir.join(format!(
+                "{prefix}{}-{:016x}",
+                std::process::id(),
+                random_suffix()
+            ));
+            match OpenOptions::new().write(true).create_new(true).open(&path) {
+                Ok(f) => return Ok((Temp { path, live: true }, f)),
+                Err(e) if e.kind() == io::ErrorKind::AlreadyExists => last = Some(e),
+                Err(e) => return Err(e),
+            }
+        }
+        Err(last.unwrap_or_else(|| io::Error::other("no free temporary name")))
+    }
+
+    fn keep(mut self) {
+        self.live = false;
     }
 }
 
-/// Removes temporary files a killed run left beside `dest`.
+impl Drop for Temp {
+    fn drop(&mut self) {
+        if self.live {
+            let _ = fs::remove_file(&self.path);
+        }
+    }
+}
+
+fn process_alive(pid: u32) -> bool {
+    let Ok(pid) = libc::pid_t::try_from(pid) else {
+        return false;
+    };
+    if pid <= 0 {
+        return false;
+    }
+    // SAFETY: signal 0 only asks whether the process exists; nothing is sent.
+    let r = unsafe { libc::kill(pid, 0) };
+    r == 0 || io::Error::last_os_error().raw_os_error() == Some(libc::EPERM)
+}
+
+/// Removes temporary files that runs which no longer exist left beside `dest` (killed, or cut
+/// off by a power loss). Files of live runs are left alone.
 pub fn remove_stale_temps(dest: &Path) {
-    let Some(name) = dest.file_name().map(|n| n.to_string_lossy().to_string()) else {
+    let prefix = temp_prefix(dest);
+    let Ok(entries) = fs::read_dir(dir_of(dest)) else {
         return;
     };
-    let dir = match dest.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    let prefix = format!(".{name}.poa-tmp-");
-    if let Ok(entries) = fs::read_dir(&dir) {
-        for e in entries.flatten() {
-            if e.file_name().to_string_lossy().starts_with(&prefix) {
-                let _ = fs::remove_file(e.path());
-            }
+    for e in entries.flatten() {
+        let name = e.file_name();
+        let name = name.to_string_lossy();
+        let Some(rest) = name.strip_prefix(&prefix) else {
+            continue;
+        };
+        let pid: String = rest.chars().take_while(char::is_ascii_digit).collect();
+        let Ok(pid) = pid.parse::<u32>() else {
+            continue;
+        };
+        let regular = e.file_type().is_ok_and(|t| t.is_file());
+        if regular && !process_alive(pid) {
+            let _ = fs::remove_file(e.path());
         }
     }
 }
@@ -46,9 +201,20 @@ pub fn remove_stale_temps(dest: &Path) {
 /// Writes `dest` atomically with what `write` produces.
 pub fn write_atomic<T>(
     dest: &Path,
+    inputs: &[&Path],
     write: impl FnOnce(&mut BufWriter<File>) -> Result<T>,
 ) -> Result<T> {
-    write_atomic_twice(dest, write, |_| false, |_, _, _| Ok(()))
+    write_atomic_twice(dest, inputs, write, |_| false, |_, _, _| Ok(()))
+}
+
+/// Writes `bytes` to `dest` atomically.
+pub fn write_bytes(dest: &Path, inputs: &[&Path], bytes: &[u8]) -> Result<()> {
+    write_atomic(dest, inputs, |w| {
+        w.write_all(bytes).map_err(|source| Error::Write {
+            path: dest.to_path_buf(),
+            source,
+        })
+    })
 }
 
 /// [`write_atomic`] with an optional second pass over what the first wrote (numbers that
@@ -56,50 +222,66 @@ pub fn write_atomic<T>(
 /// and writes a second, which alone is synced and renamed. The destination is replaced once.
 pub fn write_atomic_twice<T>(
     dest: &Path,
+    inputs: &[&Path],
     write: impl FnOnce(&mut BufWriter<File>) -> Result<T>,
     again: impl FnOnce(&T) -> bool,
     rewrite: impl FnOnce(&T, File, &mut BufWriter<File>) -> Result<()>,
 ) -> Result<T> {
-    remove_stale_temps(dest);
-    let first = temp_path(dest);
-    // Same prefix: a killed run's second file is cleaned up like the first.
-    let mut second = first.clone().into_os_string();
-    second.push(".2");
-    let second = PathBuf::from(second);
     let werr = |source: io::Error| Error::Write {
         path: dest.to_path_buf(),
         source,
     };
-    let create = |path: &Path| -> Result<BufWriter<File>> {
-        let file = OpenOptions::new()
-            .write(true)
-            .create_new(true)
-            .open(path)
-            .map_err(werr)?;
-        Ok(BufWriter::with_capacity(256 * 1024, file))
-    };
-    let result = (|| {
-        let mut w = create(&first)?;
-        let value = write(&mut w)?;
-        let mut file = w.into_inner().map_err(|e| werr(e.into_error()))?;
-        let mut done = &first;
-        if again(&value) {
-            drop(file);
-            let written = File::open(&first).map_err(werr)?;
-            let mut w = create(&second)?;
-            rewrite(&value, written, &mut w)?;
-            file = w.into_inner().map_err(|e| werr(e.into_error()))?;
-            done = &second;
+    let finish = |w: BufWriter<File>| w.into_inner().map_err(|e| werr(e.into_error()));
+    match target(dest, inputs)? {
+        Target::Replace(real) => {
+            remove_stale_temps(&real);
+            let dir = dir_of(&real);
+            let (first, file) = Temp::create(&dir, &real).map_err(werr)?;
+            let mut w = BufWriter::with_capacity(256 * 1024, file);
+            let value = write(&mut w)?;
+            let mut file = finish(w)?;
+            let mut done = first;
+            if again(&value) {
+                drop(file);
+                let written = File::open(&done.path).map_err(werr)?;
+                let (second, f2) = Temp::create(&dir, &real).map_err(werr)?;
+                let mut w = BufWriter::with_capacity(256 * 1024, f2);
+                rewrite(&value, written, &mut w)?;
+                file = finish(w)?;
+                // The first file goes before the rename: a kill in between leaves one file,
+                // which the next run removes once this process is gone.
+                done = second;
+            }
+            file.sync_all().map_err(werr)?;
+            // Keep the original's permissions when replacing it.
+            if let Ok(meta) = fs::metadata(&real) {
+                let _ = fs::set_permissions(&done.path, meta.permissions());
+            }
+            fs::rename(&done.path, &real).map_err(werr)?;
+            done.keep();
+            // The rename itself reaches the disk with the folder.
+            if let Ok(d) = File::open(&dir) {
+                let _ = d.sync_all();
+            }
+            Ok(value)
         }
-        file.sync_all().map_err(werr)?;
-        // Keep the original's permissions when replacing it.
-        if let Ok(meta) = fs::metadata(dest) {
-            let _ = fs::set_permissions(done, meta.permissions());
+        Target::Through(path) => {
+            // The content is made in full before the device is opened (a failed run writes
+            // nothing to it): first into a temporary file in the system's temporary folder.
+            let (tmp, file) = Temp::create(&std::env::temp_dir(), &path).map_err(werr)?;
+            let mut w = BufWriter::with_capacity(256 * 1024, file);
+            let value = write(&mut w)?;
+            finish(w)?;
+            let mut written = File::open(&tmp.path).map_err(werr)?;
+            let device = OpenOptions::new().write(true).open(&path).map_err(werr)?;
+            let mut out = BufWriter::with_capacity(256 * 1024, device);
+            if again(&value) {
+                rewrite(&value, written, &mut out)?;
+            } else {
+                io::copy(&mut written, &mut out).map_err(werr)?;
+            }
+            out.flush().map_err(werr)?;
+            Ok(value)
         }
-        fs::rename(done, dest).map_err(werr)?;
-        Ok(value)
-    })();
-    let _ = fs::remove_file(&first);
-    let _ = fs::remove_file(&second);
-    result
+    }
 }

@@ -87,6 +87,15 @@ pub enum BgcodeError {
         stored: u32,
         computed: u32,
     },
+    #[error("block {block} at offset {offset} says it decodes to {size} bytes, more than the {limit} a binary G-code block may hold")]
+    BlockTooLarge {
+        block: usize,
+        offset: usize,
+        size: u64,
+        limit: u64,
+    },
+    #[error("the blocks say they decode to more than {limit} bytes in all, far more than a file of {file} bytes can honestly hold")]
+    TooLarge { limit: u64, file: u64 },
     #[error("block {block} at offset {offset} cannot be decompressed: {reason}")]
     Decompression {
         block: usize,
@@ -490,6 +499,15 @@ impl<'a> Cursor<'a> {
     }
 }
 
+/// Most bytes one compressed block may decode to. PrusaSlicer and libbgcode write G-code blocks
+/// of 64 KiB of text and metadata of a few KiB; a bigger claim is a damaged or hostile file,
+/// refused before anything is inflated.
+pub const MAX_BLOCK_DECODED: u64 = 16 << 20;
+
+/// Most bytes a whole file may decode to, per byte of file: MeatPack and Heatshrink give
+/// about 3-5 x on G-code and Deflate rarely more than 10 x; a file claiming more is refused.
+pub const MAX_EXPANSION: u64 = 32;
+
 /// Reads a whole `.bgcode` file. Blocks may come in any order; each one is checked on its own.
 pub fn decode(data: &[u8]) -> Result<Bgcode, BgcodeError> {
     if data.len() >= 4 && !is_bgcode(data) {
@@ -516,6 +534,8 @@ pub fn decode(data: &[u8]) -> Result<Bgcode, BgcodeError> {
         pos: FILE_HEADER_LEN,
     };
     let mut blocks = Vec::new();
+    let total_limit = (data.len() as u64).saturating_mul(MAX_EXPANSION) + (1 << 20);
+    let mut total = 0u64;
     while cur.pos < data.len() {
         let block = blocks.len();
         let offset = cur.pos;
@@ -549,6 +569,21 @@ pub fn decode(data: &[u8]) -> Result<Bgcode, BgcodeError> {
         } else {
             cur.u32().ok_or_else(|| truncated(12))?
         };
+        if compression != Compression::None && u64::from(uncompressed) > MAX_BLOCK_DECODED {
+            return Err(BgcodeError::BlockTooLarge {
+                block,
+                offset,
+                size: uncompressed.into(),
+                limit: MAX_BLOCK_DECODED,
+            });
+        }
+        total += u64::from(uncompressed);
+        if total > total_limit {
+            return Err(BgcodeError::TooLarge {
+                limit: total_limit,
+                file: data.len() as u64,
+            });
+        }
         let params_len = if kind == BlockKind::Thumbnail { 6 } else { 2 };
         let crc_len = if checksum == ChecksumType::Crc32 {
             4

@@ -173,6 +173,87 @@ impl SlicerConfig {
     }
 }
 
+/// The slicer settings poa uses, with the values it accepts: (key, least, most, unit).
+/// A value of exactly 0 is always accepted (PrusaSlicer's "auto" or "off"); widths may also be
+/// percentages (of the nozzle, 5-1000 %). Anything outside is a damaged or hostile file or
+/// environment, refused before any work: a 1e13 mm width would take gigabytes, a 1e300 mm
+/// retraction would be written out as a 300-digit number.
+pub const SLICER_RANGES: &[(&str, f64, f64, &str)] = &[
+    ("filament_diameter", 0.5, 5.0, "mm"),
+    ("nozzle_diameter", 0.05, 3.0, "mm"),
+    ("layer_height", 0.01, 5.0, "mm"),
+    ("first_layer_height", 0.01, 5.0, "mm"),
+    ("external_perimeter_extrusion_width", 0.05, 10.0, "mm"),
+    ("perimeter_extrusion_width", 0.05, 10.0, "mm"),
+    ("extrusion_width", 0.05, 10.0, "mm"),
+    ("first_layer_extrusion_width", 0.05, 10.0, "mm"),
+    ("bridge_speed", 0.1, 2000.0, "mm/s"),
+    ("travel_speed", 0.1, 5000.0, "mm/s"),
+    ("travel_speed_z", 0.1, 5000.0, "mm/s"),
+    ("retract_length", 0.0, 100.0, "mm"),
+    ("retract_speed", 0.1, 1000.0, "mm/s"),
+    ("deretract_speed", 0.1, 1000.0, "mm/s"),
+    ("retract_lift", 0.0, 50.0, "mm"),
+    ("retract_before_travel", 0.0, 10000.0, "mm"),
+    ("filament_density", 0.1, 30.0, "g/cm3"),
+    ("machine_max_feedrate_x", 0.0, 1e5, "mm/s"),
+    ("machine_max_feedrate_y", 0.0, 1e5, "mm/s"),
+    ("machine_max_feedrate_z", 0.0, 1e5, "mm/s"),
+    ("machine_max_feedrate_e", 0.0, 1e5, "mm/s"),
+    ("machine_max_acceleration_x", 0.0, 1e7, "mm/s2"),
+    ("machine_max_acceleration_y", 0.0, 1e7, "mm/s2"),
+    ("machine_max_acceleration_z", 0.0, 1e7, "mm/s2"),
+    ("machine_max_acceleration_e", 0.0, 1e7, "mm/s2"),
+    ("machine_max_acceleration_extruding", 0.0, 1e7, "mm/s2"),
+    ("machine_max_acceleration_retracting", 0.0, 1e7, "mm/s2"),
+    ("machine_max_acceleration_travel", 0.0, 1e7, "mm/s2"),
+    ("machine_max_jerk_x", 0.0, 1e5, "mm/s"),
+    ("machine_max_jerk_y", 0.0, 1e5, "mm/s"),
+    ("machine_max_jerk_z", 0.0, 1e5, "mm/s"),
+    ("machine_max_jerk_e", 0.0, 1e5, "mm/s"),
+    ("machine_min_extruding_rate", 0.0, 1e5, "mm/s"),
+    ("machine_min_travel_rate", 0.0, 1e5, "mm/s"),
+];
+
+impl SlicerConfig {
+    /// Checks every setting of [`SLICER_RANGES`] the file or environment gives (each value of
+    /// a per-extruder list). A value that is not a number is left to the getters' defaults;
+    /// a number out of range is an error naming the setting, its value and where it came from.
+    pub fn check(&self) -> Result<(), String> {
+        for &(key, lo, hi, unit) in SLICER_RANGES {
+            let Some(v) = self.get(key) else { continue };
+            for item in v.split([',', ';', '|']) {
+                let item = item.trim();
+                let (text, percent) = match item.strip_suffix('%') {
+                    Some(p) => (p.trim(), true),
+                    None => (item.trim_end_matches("mm").trim(), false),
+                };
+                let Ok(x) = text.parse::<f64>() else { continue };
+                let (lo, hi, unit) = if percent {
+                    (5.0, 1000.0, "%")
+                } else {
+                    (lo, hi, unit)
+                };
+                if x == 0.0 || (x >= lo && x <= hi) {
+                    continue;
+                }
+                let origin = if self.is_from_env(key) {
+                    format!(
+                        "the environment variable SLIC3R_{}",
+                        key.to_ascii_uppercase()
+                    )
+                } else {
+                    "the file's configuration".to_string()
+                };
+                return Err(format!(
+                    "slicer setting {key} = {item} (from {origin}) is outside {lo}-{hi} {unit}; fix it in the slicer and export again"
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -199,6 +280,31 @@ mod tests {
         let c = SlicerConfig::parse(b";   filamentDiameters,1.75|1.75\n;Layer height: 0.15\n");
         assert_eq!(c.layer_height(), Some(0.15));
         assert_eq!(c.filament_diameter(), 1.75);
+    }
+
+    #[test]
+    fn out_of_range_settings_are_refused_with_their_origin() {
+        let c = SlicerConfig::parse(b"; external_perimeter_extrusion_width = 1e13\n");
+        let e = c.check().unwrap_err();
+        assert!(
+            e.contains("external_perimeter_extrusion_width = 1e13"),
+            "{e}"
+        );
+        assert!(e.contains("the file's configuration"), "{e}");
+        let mut c = SlicerConfig::parse(b"; retract_length = 0.8\n; bridge_speed = 0\n");
+        assert_eq!(c.check(), Ok(()), "0 is auto");
+        c.apply_env([("SLIC3R_TRAVEL_SPEED_Z".to_string(), "1e-9".to_string())]);
+        let e = c.check().unwrap_err();
+        assert!(e.contains("SLIC3R_TRAVEL_SPEED_Z"), "{e}");
+        for bad in ["1e300%", "-1", "inf", "NaN"] {
+            let c = SlicerConfig::parse(format!("; extrusion_width = {bad}\n").as_bytes());
+            assert!(c.check().is_err(), "{bad}");
+        }
+        let c =
+            SlicerConfig::parse(b"; extrusion_width = 112.5%\n; filament_diameter = 1.75,2.85\n");
+        assert_eq!(c.check(), Ok(()));
+        let c = SlicerConfig::parse(b"; filament_diameter = 1.75,1e9\n");
+        assert!(c.check().is_err());
     }
 
     #[test]

@@ -323,6 +323,9 @@ impl<R: BufRead> LayerReader<R> {
                     self.partial.extend_from_slice(buf);
                     let n = buf.len();
                     self.input.consume(n);
+                    if self.partial.len() > crate::gcode::MAX_LINE {
+                        return Err(crate::gcode::line_too_long(self.next_line));
+                    }
                     return Ok(true);
                 }
             }
