@@ -994,7 +994,7 @@ impl ObjectFilter {
             .iter()
             .chain(&self.skip)
             .filter(|r| !names.iter().any(|n| r.is_match(n)))
-            .map(|r| glob_of(r))
+            .map(glob_of)
             .collect()
     }
 

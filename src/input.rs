@@ -3,8 +3,8 @@
 //! Input: a path. Output: a buffered reader of the file's G-code text and the file's
 //! [`SlicerConfig`] (read from its head and tail, then overridden by `SLIC3R_*` variables).
 //! Binary G-code (`.bgcode`, recognised by its magic bytes whatever the file is called) is
-//! decoded in memory: the reader then yields its G-code text, the config comes from its
-//! metadata blocks, and [`Opened::binary`] keeps the decoded file so that a rewrite can be
+//! decoded block by block: the reader yields its G-code text, the config comes from its
+//! metadata blocks, and [`Opened::binary`] keeps the other blocks so that a rewrite can be
 //! written back in the same format. Refuses, with a message saying what to do, what cannot be
 //! G-code: directories, devices, FIFOs and sockets (only regular files are read: `/dev/zero`
 //! would never end and a FIFO without a writer would block), damaged binary G-code, text files
@@ -13,10 +13,10 @@
 //! command. A file is read up to the size it had when opened.
 
 use std::fs::File;
-use std::io::{BufRead, BufReader, Cursor, Read, Seek, SeekFrom};
+use std::io::{BufRead, BufReader, Read, Seek, SeekFrom};
 use std::path::Path;
 
-use crate::bgcode::{self, Bgcode, BlockKind};
+use crate::bgcode::{self, BlockKind};
 
 use crate::error::{Error, Result};
 use crate::layers::config::{HEAD_BYTES, TAIL_BYTES};
@@ -32,8 +32,9 @@ pub struct Opened {
     pub head: Vec<u8>,
     pub config: SlicerConfig,
     pub size: u64,
-    /// The decoded file when it is binary G-code.
-    pub binary: Option<Bgcode>,
+    /// The file's blocks other than G-code when it is binary G-code (the G-code is what
+    /// `reader` yields).
+    pub binary: Option<bgcode::stream::Layout>,
 }
 
 /// Opens `path`, checks that it looks like text G-code and reads its configuration.
@@ -114,23 +115,26 @@ pub fn read_all(path: &Path) -> Result<Vec<u8>> {
     Ok(data)
 }
 
-/// Decodes a binary G-code file; the pipeline reads its G-code text.
-fn open_binary(path: &Path, mut file: File, size: u64) -> Result<Opened> {
+/// Opens a binary G-code file: its metadata and thumbnails are read (and checked) now, its
+/// G-code blocks one at a time as the pipeline reads the text, so memory stays at one block
+/// whatever the file's size.
+fn open_binary(path: &Path, file: File, size: u64) -> Result<Opened> {
     let read_err = |source| Error::Read {
         path: path.to_path_buf(),
         source,
     };
-    file.seek(SeekFrom::Start(0)).map_err(read_err)?;
-    let mut data = Vec::with_capacity(size as usize);
-    file.take(size).read_to_end(&mut data).map_err(read_err)?;
-    let decoded = bgcode::decode(&data).map_err(|e| Error::NotGcode {
-        path: path.to_path_buf(),
-        reason: format!("the binary G-code is damaged: {e}; export it again"),
-    })?;
-    let text = decoded.gcode_text();
+    let damaged = |e: bgcode::stream::ReadError| match e {
+        bgcode::stream::ReadError::Io(source) => read_err(source),
+        bgcode::stream::ReadError::Format(e) => Error::NotGcode {
+            path: path.to_path_buf(),
+            reason: format!("the binary G-code is damaged: {e}; export it again"),
+        },
+    };
+    let mut file = file;
+    let layout = bgcode::stream::layout(&mut file, size).map_err(damaged)?;
     // The slicer's settings live in the metadata blocks as `key=value` lines.
     let mut config = SlicerConfig::default();
-    for block in &decoded.blocks {
+    for block in &layout.other.blocks {
         if matches!(
             block.kind,
             BlockKind::SlicerMetadata
@@ -141,18 +145,44 @@ fn open_binary(path: &Path, mut file: File, size: u64) -> Result<Opened> {
             config.add_text(&block.metadata_as_comments());
         }
     }
-    let head_len = text.len().min(HEAD_BYTES as usize);
-    config.add_text(&text[..head_len]);
+    let text_of = |f: &File| -> Result<bgcode::stream::GcodeReader<File>> {
+        Ok(bgcode::stream::GcodeReader::new(
+            f.try_clone().map_err(read_err)?,
+            &layout,
+            size,
+        ))
+    };
+    let mut head = Vec::with_capacity(HEAD_BYTES as usize);
+    text_of(&file)?
+        .take(HEAD_BYTES)
+        .read_to_end(&mut head)
+        .map_err(|e| binary_read_error(path, e))?;
+    config.add_text(&head);
     config.apply_env(std::env::vars());
     config.check().map_err(Error::Invalid)?;
-    let head = text[..head_len].to_vec();
+    let reader = text_of(&file)?;
     Ok(Opened {
-        reader: Box::new(Cursor::new(text)),
+        reader: Box::new(reader),
         head,
         config,
         size,
-        binary: Some(decoded),
+        binary: Some(layout),
     })
+}
+
+/// A damaged G-code block met while reading the text of binary G-code is the file's fault.
+fn binary_read_error(path: &Path, e: std::io::Error) -> Error {
+    if e.kind() == std::io::ErrorKind::InvalidData {
+        Error::NotGcode {
+            path: path.to_path_buf(),
+            reason: e.to_string(),
+        }
+    } else {
+        Error::Read {
+            path: path.to_path_buf(),
+            source: e,
+        }
+    }
 }
 
 /// Refuses binary data early, with the reason.

@@ -802,11 +802,17 @@ fn ab_command(
             .map_err(read_err)?;
         result = fixed;
     }
-    let bytes = match &opened.binary {
-        Some(binary) => {
-            let mut updated = printonair::bgcode::with_gcode(binary, &result);
-            emit::update_binary_metadata(&mut updated, &report);
-            printonair::bgcode::encode(&updated)
+    let bytes = match opened.binary {
+        Some(mut layout) => {
+            emit::update_binary_metadata(&mut layout.other, &report);
+            let werr = |source| printonair::Error::Write {
+                path: out.to_path_buf(),
+                source,
+            };
+            let mut blocks =
+                printonair::bgcode::stream::GcodeWriter::new(Vec::new(), &layout).map_err(werr)?;
+            std::io::Write::write_all(&mut blocks, &result).map_err(werr)?;
+            blocks.finish().map_err(werr)?
         }
         None => result,
     };
@@ -911,25 +917,37 @@ fn rewrite_file(
         }
     }
     let result = match (dest, opened_binary) {
-        (Some(dest), Some(binary)) => (|| -> printonair::error::Result<ProcessReport> {
-            // Binary G-code: rewrite the text in memory, then encode it as the input was.
-            let mut text = Vec::new();
-            let report = emit::process(reader, opened.config, &opts, &mut text)
-                .map_err(|e| stream_err(e, dest))?;
-            filter_err(&report)?;
-            if needs_progress_update(&report, args) {
-                let mut fixed = Vec::with_capacity(text.len());
-                printonair::progress::update(&text[..], &mut fixed, &report.progress, totals)
-                    .map_err(read_err)?;
-                text = fixed;
-            }
-            let mut updated = printonair::bgcode::with_gcode(&binary, &text);
-            drop(text);
-            emit::update_binary_metadata(&mut updated, &report);
-            let bytes = printonair::bgcode::encode(&updated);
-            output::write_bytes(dest, inputs, &bytes)?;
-            Ok(report)
-        })(),
+        (Some(dest), Some(mut layout)) => output::write_atomic_twice(
+            dest,
+            inputs,
+            // Binary G-code: the rewritten text goes to a first temporary file, then into G-code
+            // blocks after the metadata, which states the new totals.
+            |w| {
+                let report = emit::process(reader, opened.config, &opts, w)
+                    .map_err(|e| stream_err(e, dest))?;
+                filter_err(&report)?;
+                Ok(report)
+            },
+            |_| true,
+            |report, written, w| {
+                emit::update_binary_metadata(&mut layout.other, report);
+                let werr = |source| printonair::Error::Write {
+                    path: dest.to_path_buf(),
+                    source,
+                };
+                let mut blocks =
+                    printonair::bgcode::stream::GcodeWriter::new(w, &layout).map_err(werr)?;
+                if needs_progress_update(report, args) {
+                    printonair::progress::update(written, &mut blocks, &report.progress, totals)
+                        .map_err(werr)?;
+                } else {
+                    std::io::copy(&mut std::io::BufReader::new(written), &mut blocks)
+                        .map_err(werr)?;
+                }
+                blocks.finish().map_err(werr)?;
+                Ok(())
+            },
+        ),
         (Some(dest), None) => output::write_atomic_twice(
             dest,
             inputs,
@@ -1218,8 +1236,15 @@ fn process_command(
             Ok(r) => {
                 text.push_str(&summary_line(file, r.as_ref(), dry_run));
                 if let (Some(r), false) = (r, args.verbose) {
-                    for s in &r.skipped {
+                    const SHOWN: usize = 20;
+                    for s in r.skipped.iter().take(SHOWN) {
                         text.push_str(&format!("  {}\n", skipped_line(s)));
+                    }
+                    if r.skipped.len() > SHOWN {
+                        text.push_str(&format!(
+                            "  ... and {} more regions left as sliced (-v lists them all)\n",
+                            r.skipped.len() - SHOWN
+                        ));
                     }
                 }
             }
@@ -1279,7 +1304,7 @@ fn check_regions_folder(dir: &std::path::Path, input: &std::path::Path) -> anyho
         .extension()
         .is_some_and(|e| ["svg", "html", "htm", "gcode"].contains(&e.to_string_lossy().as_ref()));
     anyhow::ensure!(
-        !(dir.exists() && !dir.is_dir()) && !looks_like_file,
+        (!dir.exists() || dir.is_dir()) && !looks_like_file,
         "--regions writes a folder of SVG files and an index.html; -o {} is a file name (use --layer N -o FILE.svg for one layer)",
         dir.display()
     );

@@ -22,6 +22,7 @@
 mod ascii;
 mod heatshrink;
 mod meatpack;
+pub mod stream;
 
 pub use ascii::{from_ascii, BinarizeConfig};
 

@@ -136,6 +136,7 @@ where
     let mut last: Option<(Strands, MultiPolygon<f64>)> = None;
     let mut batch: Vec<Layer> = Vec::with_capacity(BATCH);
     let mut batch_bytes = 0;
+    let (mut lines, mut found) = (0u64, 0u64);
     loop {
         let next = layers.next().transpose()?;
         let end = next.is_none();
@@ -168,6 +169,12 @@ where
                 }
             })
             .collect();
+        lines += batch
+            .iter()
+            .map(|l| (l.last_line + 1).saturating_sub(l.first_line))
+            .sum::<u64>();
+        found += regions.iter().map(|r| r.len() as u64).sum::<u64>();
+        check_region_density(found, lines)?;
         for (((layer, area), below), regions) in batch.drain(..).zip(areas).zip(belows).zip(regions)
         {
             sink(Detected {
@@ -181,6 +188,27 @@ where
             return Ok(());
         }
     }
+}
+
+/// Regions found before [`check_region_density`] judges their density.
+const DENSITY_AFTER: u64 = 2_000;
+/// Fewest lines of G-code per region in a sliced part: a layer with a region over air also
+/// prints the part's walls and infill, hundreds of lines. Files with a region every few lines
+/// (a million one-move layers) are made to exhaust time and memory, not to be printed.
+const MIN_LINES_PER_REGION: u64 = 20;
+
+/// Stops a file whose regions come far denser than any slicer's output.
+fn check_region_density(found: u64, lines: u64) -> io::Result<()> {
+    if found >= DENSITY_AFTER && found * MIN_LINES_PER_REGION > lines {
+        return Err(io::Error::new(
+            io::ErrorKind::InvalidData,
+            format!(
+                "{found} regions over air in {lines} lines (one every {} lines): this is not a sliced part; poa stops here",
+                lines / found.max(1)
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// Printed areas of a batch. A wall that rises straight repeats its outline strands exactly,
