@@ -116,7 +116,7 @@ impl<'a> Parsed<'a> {
 /// Longest line poa reads. Slicers write lines of under a hundred bytes (thumbnails' base64 and
 /// Klipper's object polygons stay far below this); a longer one is damaged or hostile input,
 /// refused instead of held in memory.
-pub const MAX_LINE: usize = 16 << 20;
+pub const MAX_LINE: usize = 1 << 20;
 
 /// The error for a line longer than [`MAX_LINE`].
 pub fn line_too_long(line: u64) -> io::Error {

@@ -17,4 +17,5 @@ mod parts;
 mod properties;
 mod regions;
 mod rewrite;
+mod safety;
 mod slicer_mode;
