@@ -410,7 +410,8 @@ fn absurd_slicer_settings_are_refused_naming_them() {
     std::fs::write(&file_case, &bad).unwrap();
     let f = dir.path().join("env.gcode");
     std::fs::write(&f, &text).unwrap();
-    let cases: [(&Path, &[(&str, &str)], &str); 4] = [
+    type Case<'a> = (&'a Path, &'a [(&'a str, &'a str)], &'a str);
+    let cases: [Case; 4] = [
         (&file_case, &[], "external_perimeter_extrusion_width"),
         (
             &f,
