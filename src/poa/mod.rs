@@ -311,3 +311,226 @@ fn order(mut pieces: Vec<Polyline>, at: &mut [f64; 2]) -> Vec<Polyline> {
 fn is_closed(p: &Polyline) -> bool {
     p.len() > 3 && dist2(p[0], p[p.len() - 1]) < 1e-12
 }
+
+#[cfg(test)]
+mod tests {
+    //! The planner on literal polygons, judged geometrically: every strand inside the zone,
+    //! consecutive loops `step` apart (so each bites `overlap x w` into the one before, and
+    //! loop 1 into the wall below), the zone covered.
+    use super::*;
+    use crate::geometry::testutil::{mp, rect};
+    use geo::{Contains, Polygon};
+
+    const W: f64 = 0.45;
+
+    fn seg_dist(p: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
+        let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+        let l2 = dx * dx + dy * dy;
+        let t = if l2 > 0.0 {
+            (((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / l2).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        ((p[0] - a[0] - t * dx).powi(2) + (p[1] - a[1] - t * dy).powi(2)).sqrt()
+    }
+
+    fn dist_to(p: [f64; 2], lines: &[&Polyline]) -> f64 {
+        lines
+            .iter()
+            .flat_map(|l| l.windows(2).map(move |s| seg_dist(p, s[0], s[1])))
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    /// Points along a polyline every `step` mm.
+    fn samples(l: &Polyline, step: f64) -> Vec<[f64; 2]> {
+        let mut out = Vec::new();
+        for s in l.windows(2) {
+            let len = ((s[1][0] - s[0][0]).powi(2) + (s[1][1] - s[0][1]).powi(2)).sqrt();
+            let n = (len / step).ceil().max(1.0) as usize;
+            for i in 0..n {
+                let t = i as f64 / n as f64;
+                out.push([
+                    s[0][0] + t * (s[1][0] - s[0][0]),
+                    s[0][1] + t * (s[1][1] - s[0][1]),
+                ]);
+            }
+        }
+        out
+    }
+
+    fn region(polygon: Polygon<f64>, below: &MultiPolygon<f64>) -> Region {
+        let max_distance = polygon
+            .exterior()
+            .points()
+            .map(|p| dist_to([p.x(), p.y()], &rings(below).iter().collect::<Vec<_>>()))
+            .fold(0.0, f64::max);
+        Region {
+            layer: 1,
+            z: 0.4,
+            height: 0.2,
+            kind: RegionKind::Overhang,
+            area: geo::Area::unsigned_area(&polygon),
+            polygon,
+            max_distance,
+            anchored_length: 0.0,
+            anchors: 1,
+            object: None,
+            extrusions: Vec::new(),
+        }
+    }
+
+    /// Plans every region of `area` over `below` and checks the plan's geometry.
+    fn check(name: &str, below: MultiPolygon<f64>, area: MultiPolygon<f64>, overlap: f64) {
+        let settings = PoaSettings {
+            overlap,
+            ..Default::default()
+        };
+        let widths = Widths {
+            loop_width: W,
+            perimeter_width: W,
+            tolerance: W / 2.0,
+        };
+        let step = (1.0 - overlap) * W;
+        let uncovered = difference(&area, &below);
+        assert!(!uncovered.0.is_empty(), "{name}: no region");
+        for poly in &uncovered.0 {
+            let plan = plan(
+                &region(poly.clone(), &below),
+                &below,
+                &area,
+                widths,
+                &settings,
+                [0.0, 0.0],
+            );
+            assert!(plan.loops >= 1, "{name}: no loops");
+            // 1. Every strand inside the zone (its centreline; 1 um of rounding allowed).
+            let zone_grown = offset(&plan.zone, 0.001);
+            for s in &plan.strands {
+                for p in &s.points {
+                    assert!(
+                        zone_grown.contains(&geo::Point::new(p[0], p[1])),
+                        "{name}: {:?} strand point {p:?} outside the zone",
+                        s.kind
+                    );
+                }
+            }
+            // 2. The bite: loop k+1 lies `step` from loop k, loop 1 `step - w/2` from sectA.
+            let by_loop = |k: usize| -> Vec<&Polyline> {
+                plan.strands
+                    .iter()
+                    .filter(|s| s.kind == StrandKind::Loop && s.loop_index == k)
+                    .map(|s| &s.points)
+                    .collect()
+            };
+            let edge = rings(&below);
+            let edge: Vec<&Polyline> = edge.iter().collect();
+            for k in 1..=plan.loops {
+                let prev = if k == 1 { edge.clone() } else { by_loop(k - 1) };
+                let want = if k == 1 { step - W / 2.0 } else { step };
+                let mut d: Vec<f64> = by_loop(k)
+                    .iter()
+                    .flat_map(|l| samples(l, 0.1))
+                    .map(|p| dist_to(p, &prev))
+                    // Ends of clipped loops turn along the zone's edge: measure where loops
+                    // run beside each other.
+                    .filter(|d| *d < 2.0 * W)
+                    .collect();
+                if d.len() < 5 {
+                    continue;
+                }
+                d.sort_by(f64::total_cmp);
+                let within = d.iter().filter(|x| (**x - want).abs() <= 0.02).count();
+                assert!(
+                    within as f64 >= 0.9 * d.len() as f64,
+                    "{name}: loop {k}: {within} of {} samples {want:.3} mm from loop {} (median {:.3})",
+                    d.len(),
+                    k - 1,
+                    d[d.len() / 2]
+                );
+            }
+            // 3. The zone is covered: grid points of the zone within w/2 of a strand. The
+            // band of `perimeter_inset` along the part's outline is left by design (the
+            // external perimeter is pulled in by it, its bead spreads there).
+            let target = intersection(&plan.zone, &offset(&area, -settings.perimeter_inset));
+            let strands: Vec<&Polyline> = plan.strands.iter().map(|s| &s.points).collect();
+            let b = geo::BoundingRect::bounding_rect(&target).unwrap();
+            let (mut inside, mut covered) = (0usize, 0usize);
+            let g = 0.05;
+            let mut y = b.min().y + g / 2.0;
+            while y < b.max().y {
+                let mut x = b.min().x + g / 2.0;
+                while x < b.max().x {
+                    if target.contains(&geo::Point::new(x, y)) {
+                        inside += 1;
+                        if dist_to([x, y], &strands) <= W / 2.0 + 1e-9 {
+                            covered += 1;
+                        }
+                    }
+                    x += g;
+                }
+                y += g;
+            }
+            let share = covered as f64 / inside.max(1) as f64;
+            assert!(share >= 0.98, "{name}: zone {:.1} % covered", 100.0 * share);
+        }
+    }
+
+    #[test]
+    fn square_cantilever() {
+        check(
+            "square",
+            mp(vec![rect(0.0, 0.0, 10.0, 10.0)]),
+            mp(vec![rect(0.0, 0.0, 16.0, 10.0)]),
+            0.4,
+        );
+    }
+
+    #[test]
+    fn square_at_other_overlaps() {
+        for overlap in [0.2, 0.6] {
+            check(
+                "overlap",
+                mp(vec![rect(0.0, 0.0, 10.0, 10.0)]),
+                mp(vec![rect(0.0, 0.0, 14.0, 10.0)]),
+                overlap,
+            );
+        }
+    }
+
+    #[test]
+    fn l_shape() {
+        let area = union(
+            &mp(vec![rect(0.0, 0.0, 15.0, 8.0)]),
+            &mp(vec![rect(0.0, 0.0, 8.0, 15.0)]),
+        );
+        check("L", mp(vec![rect(0.0, 0.0, 5.0, 5.0)]), area, 0.4);
+    }
+
+    #[test]
+    fn ring_around_a_column() {
+        // A mushroom cap: the region is a ring with the column as its hole.
+        check(
+            "ring",
+            mp(vec![rect(0.0, 0.0, 6.0, 6.0)]),
+            mp(vec![rect(-4.0, -4.0, 10.0, 10.0)]),
+            0.4,
+        );
+    }
+
+    #[test]
+    fn two_islands() {
+        let below = mp(vec![rect(0.0, 0.0, 5.0, 5.0), rect(20.0, 0.0, 25.0, 5.0)]);
+        let area = mp(vec![rect(0.0, 0.0, 10.0, 5.0), rect(20.0, 0.0, 28.0, 5.0)]);
+        check("islands", below, area, 0.4);
+    }
+
+    #[test]
+    fn thin_sliver() {
+        check(
+            "sliver",
+            mp(vec![rect(0.0, 0.0, 10.0, 10.0)]),
+            mp(vec![rect(0.0, 0.0, 11.2, 10.0)]),
+            0.4,
+        );
+    }
+}

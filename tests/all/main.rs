@@ -13,6 +13,7 @@ mod cura_script;
 mod estimate;
 mod faults;
 mod frontend;
+mod golden;
 mod parts;
 mod properties;
 mod regions;

@@ -84,7 +84,7 @@ fn peak_kib(args: &[&dyn AsRef<std::ffi::OsStr>], envs: &[(&str, &str)]) -> (Out
             (o, peak)
         }
         Err(_) => {
-            eprintln!("note: memory bound not measured: python3 is missing");
+            note("memory bound not measured: python3 is missing");
             let mut p = poa();
             p.args(args);
             for (k, v) in envs {
@@ -726,7 +726,7 @@ fn dwell_pauses_are_counted_in_the_time() {
 #[test]
 fn slicer_mode_prints_a_summary_on_a_terminal() {
     if Command::new("script").arg("--version").output().is_err() {
-        eprintln!("note: slicer_mode_prints_a_summary_on_a_terminal skipped: no `script`");
+        note("slicer_mode_prints_a_summary_on_a_terminal skipped: no `script`");
         return;
     }
     let dir = tempfile::tempdir().unwrap();

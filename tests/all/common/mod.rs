@@ -91,9 +91,18 @@ pub fn shared(test: &str) -> Option<PathBuf> {
     if p.is_dir() {
         Some(p)
     } else {
-        eprintln!("note: {test} skipped: it uses third-party data from ../shared, which is absent");
+        note(&format!(
+            "{test} skipped: it uses third-party data from ../shared, which is absent"
+        ));
         None
     }
+}
+
+/// Prints a note past the test harness's capture (it captures `eprintln!`, not the stream),
+/// so that a skipped test shows in `cargo test` output.
+pub fn note(text: &str) {
+    use std::io::Write;
+    let _ = writeln!(std::io::stderr(), "note: {text}");
 }
 
 /// Whether an external tool the test needs is installed. Under CI (`CI` set) it must be:
@@ -110,7 +119,9 @@ pub fn have(tool: &str, check: &[&str], install: &str) -> bool {
             std::env::var_os("CI").is_none(),
             "{tool} is needed under CI ({install})"
         );
-        eprintln!("note: a test skipped: {tool} is not installed ({install})");
+        note(&format!(
+            "a test skipped: {tool} is not installed ({install})"
+        ));
     }
     ok
 }
