@@ -22,6 +22,7 @@ pub mod poa;
 pub mod preview;
 pub mod progress;
 pub mod report;
+pub mod rewrite;
 pub mod settings;
 
 pub use error::Error;

@@ -60,6 +60,49 @@ pub const SPECS: &[Spec] = &[
     Spec { key: "min_area", kind: Kind::Number { min: 0.0, max: 100_000.0 }, default: "1.0", unit: "mm2", help: "smallest region rewritten" },
 ];
 
+/// The values a key takes and its default, as `--help`, `poa config` and `poa profiles show`
+/// state them: `0.05-0.9`, `auto or 0.5-500 mm/s`, `keep|poa`.
+pub fn range_text(spec: &Spec) -> String {
+    let unit = if spec.unit.is_empty() {
+        String::new()
+    } else {
+        format!(" {}", spec.unit)
+    };
+    match spec.kind {
+        Kind::Number { min, max } => format!("{min} to {max}{unit}"),
+        Kind::Auto { min, max } => format!("auto or {min} to {max}{unit}"),
+        Kind::Choice(words) => words.join("|"),
+    }
+}
+
+/// The `--help` text of the flag for `key`, made from its entry in [`SPECS`]: what it does,
+/// the values it takes and its default.
+pub fn flag_help(key: &str) -> String {
+    match spec(key) {
+        Some(s) => format!(
+            "{} [{}; default {}]",
+            capitalised(s.help),
+            range_text(s),
+            s.default
+        ),
+        None => key.to_string(),
+    }
+}
+
+fn capitalised(text: &str) -> String {
+    let mut c = text.chars();
+    c.next()
+        .map(|f| f.to_uppercase().chain(c).collect())
+        .unwrap_or_default()
+}
+
+/// The rewrite's settings at the table's defaults: the table is the one place they are written.
+impl Default for PoaSettings {
+    fn default() -> Self {
+        Effective::defaults().poa_settings()
+    }
+}
+
 /// Built-in profiles: name, aliases (slicer filament types) and YAML text.
 pub const BUILTIN: &[(&str, &[&str], &str)] = &[
     (
@@ -254,6 +297,24 @@ pub fn builtin(name: &str) -> Option<(&'static str, &'static str)> {
         .map(|(p, _, text)| (*p, *text))
 }
 
+/// A built-in profile as `poa profiles show` prints it: its YAML, each key's line followed by
+/// the values the key takes and its default, from [`SPECS`].
+pub fn builtin_annotated(name: &str) -> Option<String> {
+    let (_, text) = builtin(name)?;
+    let mut out = String::with_capacity(text.len() + 1024);
+    for line in text.lines() {
+        out.push_str(line);
+        let key = line.split(':').next().unwrap_or("").trim();
+        if !line.starts_with('#') && line.contains(':') {
+            if let Some(s) = spec(key) {
+                out.push_str(&format!("  # {}; default {}", range_text(s), s.default));
+            }
+        }
+        out.push('\n');
+    }
+    Some(out)
+}
+
 /// A profile's checked entries.
 pub type Entries = Vec<(&'static str, Value)>;
 
@@ -297,14 +358,7 @@ pub fn resolve(
     config: &SlicerConfig,
     flags: &[(String, String)],
 ) -> Result<Effective, SettingsError> {
-    let mut values: Vec<EffectiveValue> = SPECS
-        .iter()
-        .map(|s| EffectiveValue {
-            key: s.key,
-            value: check_text(s.key, s.default, "").unwrap_or(Value::Word(s.default.into())),
-            source: Source::Default,
-        })
-        .collect();
+    let mut values = Effective::defaults().values;
     let chosen = match profile {
         Some(p) => Some(load_profile(p)?),
         None => config
@@ -356,17 +410,42 @@ impl Effective {
         }
     }
 
+    /// A number key's value: every key has one (its default at least), so the fallback is
+    /// the table's default, never a second copy of it.
+    fn required(&self, key: &str) -> f64 {
+        self.number(key)
+            .or_else(|| spec(key).and_then(|s| s.default.parse().ok()))
+            .unwrap_or(0.0)
+    }
+
+    /// Every key at its default from [`SPECS`].
+    pub fn defaults() -> Effective {
+        Effective {
+            profile: None,
+            values: SPECS
+                .iter()
+                .map(|s| EffectiveValue {
+                    key: s.key,
+                    value: check_text(s.key, s.default, "")
+                        .unwrap_or(Value::Word(s.default.into())),
+                    source: Source::Default,
+                })
+                .collect(),
+        }
+    }
+
     /// The rewrite's settings.
     pub fn poa_settings(&self) -> PoaSettings {
         PoaSettings {
-            overlap: self.number("overlap").unwrap_or(0.4),
+            overlap: self.required("overlap"),
             loop_speed: self.number("loop_speed"),
             perimeter_speed: self.number("perimeter_speed"),
-            fan: self.number("fan").unwrap_or(100.0) / 100.0,
-            dwell: self.number("dwell").unwrap_or(0.0),
-            flow_factor: self.number("flow_factor").unwrap_or(1.0),
-            perimeter_inset: self.number("perimeter_inset").unwrap_or(0.05),
-            temperature_offset: self.number("temperature_offset").unwrap_or(0.0),
+            // The table states percent; the planner and writer take a share.
+            fan: self.required("fan") / 100.0,
+            dwell: self.required("dwell"),
+            flow_factor: self.required("flow_factor"),
+            perimeter_inset: self.required("perimeter_inset"),
+            temperature_offset: self.required("temperature_offset"),
             bridges: match self.get("bridges") {
                 Value::Word(w) if w == "poa" => BridgeMode::Poa,
                 _ => BridgeMode::Keep,
@@ -387,7 +466,7 @@ impl Effective {
             o.tolerance = Tolerance::Angle(a);
         }
         o.min_width = self.number("min_width");
-        o.min_area = self.number("min_area").unwrap_or(1.0);
+        o.min_area = self.required("min_area");
         o
     }
 
@@ -408,12 +487,63 @@ impl fmt::Display for Effective {
             None => writeln!(f, "profile: none (built-in defaults)")?,
         }
         for e in &self.values {
-            let unit = spec(e.key).map(|s| s.unit).unwrap_or("");
-            let v = format!("{} {unit}", e.value);
-            writeln!(f, "  {:<20} {:<12} {}", e.key, v.trim(), e.source)?;
+            let Some(s) = spec(e.key) else { continue };
+            let v = format!("{} {}", e.value, s.unit);
+            writeln!(
+                f,
+                "  {:<20} {:<12} {:<24} [{}; default {}]",
+                e.key,
+                v.trim(),
+                e.source.to_string(),
+                range_text(s),
+                s.default
+            )?;
         }
         Ok(())
     }
+}
+
+/// The slicer settings poa reads, as `poa config` lists them.
+const SLICER_FACTS: &[&str] = &[
+    "filament_type",
+    "filament_diameter",
+    "nozzle_diameter",
+    "layer_height",
+    "external_perimeter_extrusion_width",
+    "bridge_speed",
+    "retract_length",
+    "retract_lift",
+    "travel_speed",
+    "use_relative_e_distances",
+];
+
+/// `poa config FILE` as text: the settings in force with their sources, then the slicer
+/// settings poa reads from the file and where each came from.
+pub fn describe(eff: &Effective, config: &SlicerConfig) -> String {
+    let mut t = eff.to_string();
+    t.push_str("from the slicer (config block, overridden by SLIC3R_* variables):\n");
+    for key in SLICER_FACTS {
+        let v = config.get(key).unwrap_or("(not set)");
+        let src = if config.is_from_env(key) {
+            "SLIC3R_ variable"
+        } else if config.get(key).is_some() {
+            "file"
+        } else {
+            ""
+        };
+        t.push_str(&format!("  {key:<36} {v:<12} {src}\n"));
+    }
+    t
+}
+
+/// `poa profiles`: the built-in profiles and the filament types that pick each.
+pub fn profiles_text() -> String {
+    let mut t = String::from("built-in profiles (poa profiles show NAME prints one):\n");
+    for (name, aliases, _) in BUILTIN {
+        t.push_str(&format!("  {name:<6} for {}\n", aliases.join(", ")));
+    }
+    t.push_str("without --profile, poa picks the one matching the slicer's filament type\n");
+    t
 }
 
 #[cfg(test)]

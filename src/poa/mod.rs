@@ -33,10 +33,12 @@ pub enum BridgeMode {
     Poa,
 }
 
-/// Settings of the rewrite. Speeds in mm/s, distances in mm.
+/// Settings of the rewrite. Speeds in mm/s, distances in mm. `Default` is implemented where the
+/// settings table lives ([`crate::settings`]).
 #[derive(Debug, Clone, Serialize)]
 pub struct PoaSettings {
-    /// Share of a bead's width each loop overlaps the previous one (0.4 in the paper's spirit).
+    /// Share of a bead's width each loop overlaps the previous one. Defaults of every field
+    /// come from the settings table (`crate::settings::SPECS`), the one place they are written.
     pub overlap: f64,
     /// Loop speed; `None` uses the file's bridge speed.
     pub loop_speed: Option<f64>,
@@ -53,22 +55,6 @@ pub struct PoaSettings {
     /// Nozzle temperature change while printing the loops (degrees C), restored afterwards.
     pub temperature_offset: f64,
     pub bridges: BridgeMode,
-}
-
-impl Default for PoaSettings {
-    fn default() -> Self {
-        PoaSettings {
-            overlap: 0.4,
-            loop_speed: None,
-            perimeter_speed: None,
-            fan: 1.0,
-            dwell: 0.0,
-            flow_factor: 1.0,
-            perimeter_inset: 0.05,
-            temperature_offset: 0.0,
-            bridges: BridgeMode::Keep,
-        }
-    }
 }
 
 impl PoaSettings {
@@ -323,6 +309,10 @@ mod tests {
 
     const W: f64 = 0.45;
 
+    fn default_overlap() -> f64 {
+        PoaSettings::default().overlap
+    }
+
     fn seg_dist(p: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
         let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
         let l2 = dx * dx + dy * dy;
@@ -481,7 +471,7 @@ mod tests {
             "square",
             mp(vec![rect(0.0, 0.0, 10.0, 10.0)]),
             mp(vec![rect(0.0, 0.0, 16.0, 10.0)]),
-            0.4,
+            default_overlap(),
         );
     }
 
@@ -503,7 +493,12 @@ mod tests {
             &mp(vec![rect(0.0, 0.0, 15.0, 8.0)]),
             &mp(vec![rect(0.0, 0.0, 8.0, 15.0)]),
         );
-        check("L", mp(vec![rect(0.0, 0.0, 5.0, 5.0)]), area, 0.4);
+        check(
+            "L",
+            mp(vec![rect(0.0, 0.0, 5.0, 5.0)]),
+            area,
+            default_overlap(),
+        );
     }
 
     #[test]
@@ -513,7 +508,7 @@ mod tests {
             "ring",
             mp(vec![rect(0.0, 0.0, 6.0, 6.0)]),
             mp(vec![rect(-4.0, -4.0, 10.0, 10.0)]),
-            0.4,
+            default_overlap(),
         );
     }
 
@@ -521,7 +516,7 @@ mod tests {
     fn two_islands() {
         let below = mp(vec![rect(0.0, 0.0, 5.0, 5.0), rect(20.0, 0.0, 25.0, 5.0)]);
         let area = mp(vec![rect(0.0, 0.0, 10.0, 5.0), rect(20.0, 0.0, 28.0, 5.0)]);
-        check("islands", below, area, 0.4);
+        check("islands", below, area, default_overlap());
     }
 
     #[test]
@@ -530,7 +525,7 @@ mod tests {
             "sliver",
             mp(vec![rect(0.0, 0.0, 10.0, 10.0)]),
             mp(vec![rect(0.0, 0.0, 11.2, 10.0)]),
-            0.4,
+            default_overlap(),
         );
     }
 }

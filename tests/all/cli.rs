@@ -262,3 +262,45 @@ fn check_draws_a_layer_with_its_unsupported_points() {
     let out = poa(&["check", f.to_str().unwrap(), "--fail-in-air", "5"]);
     assert_eq!(out.status.code(), Some(2));
 }
+
+/// `--help`, `poa config` and `poa profiles show` state each setting's values and default as
+/// the settings table does: they are made from it.
+#[test]
+fn help_config_and_profiles_agree_with_the_settings_table() {
+    use printonair::settings::{range_text, SPECS};
+    let squash = |o: std::process::Output| -> String {
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8_lossy(&o.stdout)
+            .split_whitespace()
+            .collect::<Vec<_>>()
+            .join(" ")
+    };
+    let help = squash(poa(&["--help"]));
+    let config = squash(poa(&[
+        "config",
+        sample("rect_overhang_prusa_rel.gcode").to_str().unwrap(),
+    ]));
+    let profile = squash(poa(&["profiles", "show", "petg"]));
+    for s in SPECS {
+        let stated = format!("{}; default {}", range_text(s), s.default);
+        // Every key has a named flag.
+        assert!(
+            help.contains(&stated),
+            "--help lacks `{stated}` for {}",
+            s.key
+        );
+        assert!(
+            config.contains(&stated),
+            "poa config lacks `{stated}` for {}",
+            s.key
+        );
+        if profile.contains(&format!("{}:", s.key)) {
+            assert!(
+                profile.contains(&stated),
+                "profile lacks `{stated}` for {}",
+                s.key
+            );
+        }
+    }
+    assert!(!help.contains("0..0.9"));
+}

@@ -1,0 +1,336 @@
+//! The command line: clap's view of the arguments, and what they ask of the library (a
+//! [`printonair::rewrite::Request`], detection options). Only validation happens here.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+use printonair::geometry::DetectOptions;
+use printonair::layers::SlicerConfig;
+use printonair::rewrite::Request;
+use printonair::settings;
+
+#[derive(Parser)]
+#[command(
+    name = "poa",
+    version,
+    about = "Print overhangs on air: rewrite a slicer's G-code so overhangs print without supports"
+)]
+#[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Option<Command>,
+    /// Slicer mode: rewrite FILE in place (how PrusaSlicer, SuperSlicer and OrcaSlicer call
+    /// post-processing scripts: the G-code path comes last).
+    #[arg(value_name = "FILE", required = true)]
+    pub file: Option<PathBuf>,
+    #[command(flatten)]
+    pub rewrite: RewriteArgs,
+}
+
+#[derive(Subcommand)]
+#[allow(clippy::large_enum_variant)] // parsed once per run
+pub enum Command {
+    /// Describe a G-code file: slicer, E mode, layers, filament per role, objects, notes.
+    Info {
+        file: PathBuf,
+        /// Machine-readable output.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Find the regions that would print over air: overhangs and bridges, layer by layer.
+    Analyze {
+        file: PathBuf,
+        /// Machine-readable output (fields documented in README.md).
+        #[arg(long)]
+        json: bool,
+        #[command(flatten)]
+        detect: DetectArgs,
+    },
+    /// Rewrite the regions over air with Print-on-Air loops: IN -o OUT, or IN... --out-dir DIR.
+    Process {
+        #[arg(required = true, value_name = "IN")]
+        files: Vec<PathBuf>,
+        /// Output file (one input).
+        #[arg(short, long, value_name = "OUT", conflicts_with = "out_dir")]
+        output: Option<PathBuf>,
+        /// Output folder (any number of inputs; same file names).
+        #[arg(long, value_name = "DIR")]
+        out_dir: Option<PathBuf>,
+        /// Show what would change; write nothing.
+        #[arg(long)]
+        dry_run: bool,
+        /// Write per-region statistics (loops, length, filament and time added) as JSON.
+        #[arg(long, value_name = "FILE.json")]
+        report: Option<PathBuf>,
+        #[command(flatten)]
+        rewrite: RewriteArgs,
+    },
+    /// A/B test plate: the part as sliced plus a copy shifted by DX,DY with Print-on-Air
+    /// applied to the copy only, both printed in every layer, each its own object.
+    Ab {
+        file: PathBuf,
+        /// Output file.
+        #[arg(short, long, value_name = "OUT")]
+        output: PathBuf,
+        /// Shift of the copy in mm, e.g. --offset 60,0.
+        #[arg(long, value_name = "DX,DY", allow_hyphen_values = true)]
+        offset: String,
+        /// Least distance between the copy and the original's material, mm.
+        #[arg(long, value_name = "MM", default_value_t = 5.0)]
+        gap: f64,
+        /// Bed rectangle X0,Y0,X1,Y1 in mm, when the file does not state its bed shape.
+        #[arg(long, value_name = "X0,Y0,X1,Y1", allow_hyphen_values = true)]
+        bed: Option<String>,
+        #[command(flatten)]
+        rewrite: RewriteArgs,
+    },
+    /// Convert between binary G-code (.bgcode) and text G-code, whichever the input is.
+    Convert {
+        /// A .bgcode file (recognised by its content, whatever its name) or a text G-code file
+        /// written by PrusaSlicer.
+        input: PathBuf,
+        /// The file to write: text from binary, binary from text.
+        output: PathBuf,
+        /// Block compression for text -> binary: `prusaslicer` (what PrusaSlicer 2.7+ writes)
+        /// or `libbgcode` (libbgcode's converters: print metadata uncompressed).
+        #[arg(long, value_name = "PRESET", default_value = "prusaslicer", value_parser = ["prusaslicer", "libbgcode"])]
+        preset: String,
+    },
+    /// List the built-in settings profiles, or print one as YAML to copy and edit.
+    Profiles {
+        #[command(subcommand)]
+        action: Option<ProfilesAction>,
+    },
+    /// Print the settings in force for a file and where each comes from.
+    Config {
+        file: PathBuf,
+        /// Machine-readable output.
+        #[arg(long)]
+        json: bool,
+        #[command(flatten)]
+        rewrite: RewriteArgs,
+    },
+    /// Simulate the deposition: how much of each layer rests on material already there.
+    Check {
+        file: PathBuf,
+        /// Machine-readable output.
+        #[arg(long)]
+        json: bool,
+        /// A point is supported when material lies within (0.5 - this) x its width.
+        #[arg(long, value_name = "SHARE", default_value_t = 0.25)]
+        overlap_min: f64,
+        /// Longest unsupported span counted as an intended bridge, mm.
+        #[arg(long, value_name = "MM", default_value_t = 10.0)]
+        max_bridge: f64,
+        /// Exit with status 2 when more than this many mm are printed in air.
+        #[arg(long, value_name = "MM")]
+        fail_in_air: Option<f64>,
+        /// Compare with this original: both side by side, and the layers that changed.
+        #[arg(long, value_name = "ORIGINAL")]
+        compare: Option<PathBuf>,
+        /// Also draw this layer (1 = first) with its bridged and in-air points, into -o.
+        #[arg(long, value_name = "N", requires = "output")]
+        svg_layer: Option<usize>,
+        /// Where --svg-layer writes its SVG.
+        #[arg(short, long, value_name = "OUT.svg")]
+        output: Option<PathBuf>,
+    },
+    /// Draw layers as SVG: the layer below, the strands by role, the regions over air.
+    #[command(group(clap::ArgGroup::new("what").required(true).args(["layer", "regions"])))]
+    Preview {
+        file: PathBuf,
+        /// Draw this layer (1 = first layer) into the SVG file given with -o.
+        #[arg(long, value_name = "N")]
+        layer: Option<usize>,
+        /// Draw every layer that has regions into the folder given with -o, with an index.html.
+        #[arg(long)]
+        regions: bool,
+        /// Output: an .svg file with --layer, a folder with --regions.
+        #[arg(short, long, value_name = "PATH")]
+        output: PathBuf,
+        #[command(flatten)]
+        detect: DetectArgs,
+    },
+}
+
+#[derive(Subcommand)]
+pub enum ProfilesAction {
+    /// Print a built-in profile as commented YAML.
+    Show { name: String },
+}
+
+/// Region detection settings shared by the commands that detect regions.
+#[derive(clap::Args, Default)]
+pub struct DetectArgs {
+    #[arg(long, value_name = "MM", conflicts_with = "overhang_angle", help = settings::flag_help("tolerance"))]
+    pub tolerance: Option<f64>,
+    #[arg(long, value_name = "DEG", help = settings::flag_help("overhang_angle"))]
+    pub overhang_angle: Option<f64>,
+    #[arg(long, value_name = "MM", help = settings::flag_help("min_width"))]
+    pub min_width: Option<f64>,
+    #[arg(long, value_name = "MM2", help = settings::flag_help("min_area"))]
+    pub min_area: Option<f64>,
+}
+
+/// Rewrite settings shared by slicer mode and `poa process`.
+#[derive(clap::Args, Default)]
+pub struct RewriteArgs {
+    /// Settings profile: a built-in name (`poa profiles` lists them) or a YAML file
+    /// [default: the built-in profile matching the slicer's filament type, if any].
+    #[arg(long, value_name = "NAME|PATH")]
+    pub profile: Option<String>,
+    /// Set any setting: `--set fan=80` (repeatable; `poa profiles show pla` lists the keys).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    pub set: Vec<String>,
+    #[arg(long, value_name = "C", allow_hyphen_values = true, help = settings::flag_help("temperature_offset"))]
+    pub temperature_offset: Option<f64>,
+    #[arg(long, value_name = "MODE", value_parser = ["keep", "poa"], help = settings::flag_help("bridges"))]
+    pub bridges: Option<String>,
+    #[arg(long, value_name = "SHARE", help = settings::flag_help("overlap"))]
+    pub overlap: Option<f64>,
+    #[arg(long, value_name = "MM/S", help = settings::flag_help("loop_speed"))]
+    pub loop_speed: Option<f64>,
+    #[arg(long, value_name = "MM/S", help = settings::flag_help("perimeter_speed"))]
+    pub perimeter_speed: Option<f64>,
+    #[arg(long, value_name = "PERCENT", help = settings::flag_help("fan"))]
+    pub fan: Option<f64>,
+    #[arg(long, value_name = "S", help = settings::flag_help("dwell"))]
+    pub dwell: Option<f64>,
+    #[arg(long, value_name = "FACTOR", help = settings::flag_help("flow_factor"))]
+    pub flow: Option<f64>,
+    #[arg(long, value_name = "MM", help = settings::flag_help("perimeter_inset"))]
+    pub perimeter_inset: Option<f64>,
+    /// Rewrite only these objects (comma-separated names as the file labels them; * and ?).
+    #[arg(long, value_name = "NAMES", value_delimiter = ',')]
+    pub objects: Vec<String>,
+    /// Leave these objects as sliced.
+    #[arg(long, value_name = "NAMES", value_delimiter = ',')]
+    pub skip_objects: Vec<String>,
+    /// Print what happened to each region.
+    #[arg(short, long)]
+    pub verbose: bool,
+    /// Leave the slicer's M73 progress lines as they are (by default their remaining times
+    /// and percentages are recomputed for the time the rewrite adds).
+    #[arg(long)]
+    pub keep_progress: bool,
+    #[command(flatten)]
+    pub detect: DetectArgs,
+}
+
+impl RewriteArgs {
+    /// What these flags ask of a rewrite.
+    pub fn request(&self) -> anyhow::Result<Request> {
+        let mut flags = self.detect.flags();
+        let mut num = |key: &str, v: Option<f64>| {
+            if let Some(x) = v {
+                flags.push((key.to_string(), x.to_string()));
+            }
+        };
+        num("overlap", self.overlap);
+        num("loop_speed", self.loop_speed);
+        num("perimeter_speed", self.perimeter_speed);
+        num("fan", self.fan);
+        num("dwell", self.dwell);
+        num("flow_factor", self.flow);
+        num("perimeter_inset", self.perimeter_inset);
+        num("temperature_offset", self.temperature_offset);
+        if let Some(b) = &self.bridges {
+            flags.push(("bridges".into(), b.clone()));
+        }
+        for kv in &self.set {
+            let Some((k, v)) = kv.split_once('=') else {
+                anyhow::bail!("--set takes KEY=VALUE (got {kv:?})");
+            };
+            flags.push((k.trim().to_string(), v.trim().to_string()));
+        }
+        Ok(Request {
+            profile: self.profile.clone(),
+            flags,
+            objects: self.objects.clone(),
+            skip_objects: self.skip_objects.clone(),
+            keep_progress: self.keep_progress,
+        })
+    }
+}
+
+impl DetectArgs {
+    pub fn flags(&self) -> Vec<(String, String)> {
+        let mut f = Vec::new();
+        for (key, v) in [
+            ("tolerance", self.tolerance),
+            ("overhang_angle", self.overhang_angle),
+            ("min_width", self.min_width),
+            ("min_area", self.min_area),
+        ] {
+            if let Some(x) = v {
+                f.push((key.to_string(), x.to_string()));
+            }
+        }
+        f
+    }
+
+    pub fn options(&self, config: &SlicerConfig) -> anyhow::Result<DetectOptions> {
+        Ok(settings::resolve(None, config, &self.flags())?.detect_options(config))
+    }
+}
+/// Parses the command line. Usage errors get poa's prefix and fit in two lines (a slicer shows
+/// them in a small dialog); a mistyped command name gets a suggestion instead of being taken
+/// for the G-code file of slicer mode.
+pub fn parse_args() -> Result<Cli, ExitCode> {
+    use clap::CommandFactory;
+    let args: Vec<std::ffi::OsString> = std::env::args_os().collect();
+    let names: Vec<String> = Cli::command()
+        .get_subcommands()
+        .map(|c| c.get_name().to_string())
+        .collect();
+    if let Some(first) = args.get(1).and_then(|a| a.to_str()) {
+        let looks_like_command = !first.starts_with('-')
+            && !first.contains(['.', '/'])
+            && !std::path::Path::new(first).exists()
+            && !names.iter().any(|n| n == first);
+        if looks_like_command {
+            let best = names
+                .iter()
+                .map(|n| (strsim::damerau_levenshtein(first, n), n))
+                .min()
+                .filter(|(d, n)| *d <= 2.max(n.len() / 3));
+            let hint = match best {
+                Some((_, n)) => format!("did you mean `poa {n}`?"),
+                None => format!("commands: {}", names.join(", ")),
+            };
+            eprintln!("poa: `{first}` is neither a command nor a file; {hint}");
+            return Err(ExitCode::from(2));
+        }
+    }
+    Cli::try_parse_from(&args).map_err(|e| {
+        use clap::error::ErrorKind;
+        if matches!(
+            e.kind(),
+            ErrorKind::DisplayHelp
+                | ErrorKind::DisplayVersion
+                | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand
+        ) {
+            let _ = e.print();
+            return ExitCode::from(if e.use_stderr() { 2 } else { 0 });
+        }
+        let text = e.render().to_string();
+        let mut lines = text.lines().map(str::trim).filter(|l| !l.is_empty());
+        let first = lines.next().unwrap_or("bad arguments");
+        let first = first.strip_prefix("error: ").unwrap_or(first);
+        // "the following required arguments were not provided:" names them on the next line.
+        let first = match first.strip_suffix(':') {
+            Some(head) => format!("{head}: {}", lines.next().unwrap_or("")),
+            None => first.to_string(),
+        };
+        let tip = lines
+            .find(|l| l.starts_with("tip:"))
+            .map(|t| format!("{t}; "))
+            .unwrap_or_default();
+        eprintln!(
+            "poa: {first}\n  {tip}usage: poa [OPTIONS] FILE, or poa COMMAND ... (poa --help)"
+        );
+        ExitCode::from(2)
+    })
+}

@@ -1,0 +1,347 @@
+//! The commands with more to do than one library call: `process` (many files, a table),
+//! `check` (compare, draw, fail) and `preview` (one layer or a folder).
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use printonair::emit::ProcessReport;
+use printonair::rewrite::{self, Request};
+use printonair::{input, output, preview, report};
+
+use crate::args::{DetectArgs, RewriteArgs};
+use crate::print::{emit, error_text, skipped_line, summary_line, verbose_lines, write_stdout};
+
+/// Writes an output file atomically, refusing to write over any of `inputs`.
+fn write_file(path: &Path, inputs: &[&Path], text: &str) -> anyhow::Result<()> {
+    output::write_bytes(path, inputs, text.as_bytes())?;
+    Ok(())
+}
+
+/// `poa check`.
+#[allow(clippy::too_many_arguments)] // one per flag of the command
+pub fn check(
+    file: PathBuf,
+    json: bool,
+    overlap_min: f64,
+    max_bridge: f64,
+    fail_in_air: Option<f64>,
+    compare: Option<PathBuf>,
+    svg_layer: Option<usize>,
+    svg_out: Option<PathBuf>,
+) -> anyhow::Result<ExitCode> {
+    anyhow::ensure!(
+        (0.0..0.5).contains(&overlap_min),
+        "--overlap-min must be between 0 and 0.5"
+    );
+    anyhow::ensure!(max_bridge >= 0.0, "--max-bridge must be 0 or more");
+    if let Some(out) = &svg_out {
+        let mut inputs = vec![file.as_path()];
+        inputs.extend(compare.as_deref());
+        output::check_not_input(out, &inputs)?;
+    }
+    let opened = input::open(&file)?;
+    let opts = printonair::check::CheckOptions {
+        overlap_min,
+        max_bridge,
+        ..Default::default()
+    };
+    let name = file.display().to_string();
+    let rep = report::check(opened.reader, opened.config, &opts, &name).map_err(|source| {
+        printonair::Error::Read {
+            path: file.clone(),
+            source,
+        }
+    })?;
+    let in_air = rep.in_air_mm;
+    if let (Some(n), Some(out)) = (svg_layer, svg_out) {
+        let again = input::open(&file)?;
+        let title = file
+            .file_name()
+            .map(|f| f.to_string_lossy().to_string())
+            .unwrap_or_default();
+        let svg = preview::check_layer_svg(again.reader, again.config, &opts, n, &title).map_err(
+            |source| printonair::Error::Read {
+                path: file.clone(),
+                source,
+            },
+        )?;
+        let Some(svg) = svg else {
+            anyhow::bail!("{} has no layer {n}", file.display());
+        };
+        let mut inputs = vec![file.as_path()];
+        inputs.extend(compare.as_deref());
+        write_file(&out, &inputs, &svg)?;
+    }
+    if let Some(orig) = compare {
+        let o = input::open(&orig)?;
+        let orig_name = orig.display().to_string();
+        let before = report::check(o.reader, o.config, &opts, &orig_name)
+            .map_err(|source| printonair::Error::Read { path: orig, source })?;
+        emit(&report::compare(before, rep), json)?;
+    } else {
+        emit(&rep, json)?;
+    }
+    if let Some(limit) = fail_in_air.filter(|limit| in_air > *limit) {
+        eprintln!(
+            "poa: {} prints {in_air:.1} mm in air, more than --fail-in-air {limit} mm",
+            file.display()
+        );
+        return Ok(ExitCode::from(2));
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `poa preview`.
+pub fn preview(
+    file: PathBuf,
+    layer: Option<usize>,
+    regions: bool,
+    output: PathBuf,
+    detect: DetectArgs,
+) -> anyhow::Result<ExitCode> {
+    if regions {
+        check_regions_folder(&output, &file)?;
+    } else {
+        output::check_not_input(&output, &[&file])?;
+    }
+    let opened = input::open(&file)?;
+    let opts = detect.options(&opened.config)?;
+    let title = file
+        .file_name()
+        .map(|n| n.to_string_lossy().to_string())
+        .unwrap_or_default();
+    let read_err = |source| printonair::Error::Read {
+        path: file.clone(),
+        source,
+    };
+    if regions {
+        let previews = preview::preview_regions(opened.reader, opened.config, &opts, &title)
+            .map_err(read_err)?;
+        std::fs::create_dir_all(&output).map_err(|source| printonair::Error::Write {
+            path: output.clone(),
+            source,
+        })?;
+        for (name, svg) in &previews.layers {
+            write_file(&output.join(name), &[&file], svg)?;
+        }
+        write_file(&output.join("index.html"), &[&file], &previews.index)?;
+        eprintln!(
+            "poa: {} layer{} with regions drawn; open {}",
+            previews.layers.len(),
+            if previews.layers.len() == 1 { "" } else { "s" },
+            output.join("index.html").display()
+        );
+    } else if let Some(n) = layer {
+        let svg = preview::preview_layer(opened.reader, opened.config, &opts, n, &title)
+            .map_err(read_err)?;
+        let Some(svg) = svg else {
+            anyhow::bail!(
+                "{} has no layer {n}; `poa info` shows how many it has",
+                file.display()
+            );
+        };
+        write_file(&output, &[&file], &svg)?;
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// One file's rewrite with the CLI's extras: a progress bar for one big file, `-v` lines.
+pub fn rewrite_one(
+    file: &Path,
+    dest: Option<&Path>,
+    inputs: &[&Path],
+    args: &RewriteArgs,
+    req: &Request,
+    bar: bool,
+) -> anyhow::Result<Option<ProcessReport>> {
+    let wrap =
+        move |r: Box<dyn std::io::BufRead + Send>, size: u64| -> Box<dyn std::io::BufRead + Send> {
+            Box::new(crate::print::Progress::new(r, size, bar))
+        };
+    if let (Some(dest), true) = (dest, dest != Some(file)) {
+        let binary = std::fs::File::open(file).ok().and_then(|mut f| {
+            let mut magic = [0u8; 4];
+            std::io::Read::read_exact(&mut f, &mut magic).ok()?;
+            Some(printonair::bgcode::is_bgcode(&magic))
+        });
+        if binary == Some(true) && dest.extension().is_none_or(|e| e != "bgcode") {
+            eprintln!(
+                "poa: note: {} is binary G-code, so {} is written as binary G-code too (PrusaSlicer names such files .bgcode; `poa convert` makes text)",
+                file.display(),
+                dest.display()
+            );
+        }
+    }
+    let report = rewrite::rewrite_file(file, dest, inputs, req, &wrap)?;
+    if let (Some(r), true) = (&report, args.verbose) {
+        write_stdout(&verbose_lines(r))?;
+    }
+    Ok(report)
+}
+
+pub fn process(
+    files: &[PathBuf],
+    output: Option<PathBuf>,
+    out_dir: Option<PathBuf>,
+    dry_run: bool,
+    report_path: Option<PathBuf>,
+    args: &RewriteArgs,
+) -> anyhow::Result<ExitCode> {
+    let req = args.request()?;
+    if files.len() > 1 && out_dir.is_none() && !dry_run {
+        anyhow::bail!("several inputs need --out-dir DIR (or --dry-run)");
+    }
+    if output.is_none() && out_dir.is_none() && !dry_run {
+        anyhow::bail!("say where to write: -o OUT, --out-dir DIR, or --dry-run");
+    }
+    let dest_of = |file: &PathBuf| -> Option<PathBuf> {
+        if dry_run {
+            None
+        } else if let Some(o) = &output {
+            Some(o.clone())
+        } else {
+            out_dir
+                .as_ref()
+                .map(|d| d.join(file.file_name().unwrap_or_default()))
+        }
+    };
+    // Everything that could overwrite an input, or two results landing in one file, is
+    // refused before any work.
+    let inputs: Vec<&std::path::Path> = files.iter().map(PathBuf::as_path).collect();
+    let mut taken: std::collections::HashMap<PathBuf, &PathBuf> = Default::default();
+    for file in files {
+        let Some(d) = dest_of(file) else { continue };
+        if output::same_file(file, &d) {
+            anyhow::bail!(
+                "{} is the input {} itself; use slicer mode (poa FILE) to rewrite in place",
+                d.display(),
+                file.display()
+            );
+        }
+        output::check_not_input(&d, &inputs)?;
+        if let Some(other) = taken.insert(d.clone(), file) {
+            anyhow::bail!(
+                "{} and {} would both be written to {}; process them in separate runs or rename one",
+                other.display(),
+                file.display(),
+                d.display()
+            );
+        }
+    }
+    if let Some(p) = &report_path {
+        output::check_not_input(p, &inputs)?;
+        anyhow::ensure!(
+            !taken.keys().any(|d| d == p || output::same_file(d, p)),
+            "--report {} is also a G-code output; give the report its own name",
+            p.display()
+        );
+    }
+    if let Some(dir) = out_dir.as_ref() {
+        if !dry_run {
+            std::fs::create_dir_all(dir).map_err(|source| printonair::Error::Write {
+                path: dir.clone(),
+                source,
+            })?;
+        }
+    }
+    // Every file is tried, on all cores; one bad file does not stop the others.
+    let outcomes: Vec<(PathBuf, Result<Option<ProcessReport>, String>)> = {
+        use rayon::prelude::*;
+        files
+            .par_iter()
+            .map(|file| {
+                let dest = dest_of(file);
+                let result = (|| -> anyhow::Result<Option<ProcessReport>> {
+                    let r =
+                        rewrite_one(file, dest.as_deref(), &inputs, args, &req, files.len() == 1)?;
+                    if r.is_none() {
+                        if let Some(d) = &dest {
+                            rewrite::copy_file(file, d, &inputs)?;
+                        }
+                    }
+                    Ok(r)
+                })();
+                (file.clone(), result.map_err(|e| error_text(&e)))
+            })
+            .collect()
+    };
+    let mut reports = Vec::new();
+    let mut failed = 0;
+    let mut text = String::new();
+    if files.len() > 1 {
+        text.push_str(&format!(
+            "{:<40} {:<12} {:>7} {:>9} {:>6} {:>8} {:>11}  status\n",
+            "file", "slicer", "regions", "rewritten", "loops", "time s", "filament mm"
+        ));
+    }
+    for (file, result) in &outcomes {
+        match result {
+            Ok(Some(r)) if files.len() > 1 => {
+                text.push_str(&format!(
+                    "{:<40} {:<12} {:>7} {:>9} {:>6} {:>+8.0} {:>+11.1}  {}\n",
+                    file.display(),
+                    r.slicer,
+                    r.regions_found,
+                    r.regions_rewritten,
+                    r.loops,
+                    r.time_added_s,
+                    r.filament_added_mm,
+                    if dry_run { "dry run" } else { "ok" }
+                ));
+            }
+            Ok(r) => {
+                text.push_str(&summary_line(file, r.as_ref(), dry_run));
+                if let (Some(r), false) = (r, args.verbose) {
+                    const SHOWN: usize = 20;
+                    for s in r.skipped.iter().take(SHOWN) {
+                        text.push_str(&format!("  {}\n", skipped_line(s)));
+                    }
+                    if r.skipped.len() > SHOWN {
+                        text.push_str(&format!(
+                            "  ... and {} more regions left as sliced (-v lists them all)\n",
+                            r.skipped.len() - SHOWN
+                        ));
+                    }
+                }
+            }
+            Err(e) => {
+                failed += 1;
+                if files.len() > 1 {
+                    text.push_str(&format!("{:<40} {e}\n", file.display()));
+                } else {
+                    eprintln!("poa: {e}");
+                }
+            }
+        }
+        match result {
+            Ok(Some(r)) => reports.push(serde_json::json!({"file": file, "report": r})),
+            Ok(None) => reports.push(serde_json::json!({"file": file, "already_processed": true})),
+            Err(e) => reports.push(serde_json::json!({"file": file, "error": e})),
+        }
+    }
+    write_stdout(&text)?;
+    if let Some(p) = report_path {
+        let text = serde_json::to_string_pretty(&serde_json::json!({ "files": reports }))?;
+        write_file(&p, &inputs, &text)?;
+    }
+    Ok(if failed > 0 {
+        ExitCode::from(1)
+    } else {
+        ExitCode::SUCCESS
+    })
+}
+
+/// `preview --regions -o DIR` writes a folder: refuse a path that is a file, or that names
+/// one (`r.svg`), instead of making a folder of that name.
+fn check_regions_folder(dir: &std::path::Path, input: &std::path::Path) -> anyhow::Result<()> {
+    output::check_not_input(dir, &[input])?;
+    let looks_like_file = dir
+        .extension()
+        .is_some_and(|e| ["svg", "html", "htm", "gcode"].contains(&e.to_string_lossy().as_ref()));
+    anyhow::ensure!(
+        (!dir.exists() || dir.is_dir()) && !looks_like_file,
+        "--regions writes a folder of SVG files and an index.html; -o {} is a file name (use --layer N -o FILE.svg for one layer)",
+        dir.display()
+    );
+    Ok(())
+}

@@ -1,0 +1,353 @@
+//! The whole rewrite of a file, as every command that writes G-code runs it.
+//!
+//! Input: an input path, a destination (none for a dry run), every input of the run (no output
+//! may land on one), and a [`Request`]: the profile, the flags as `key=value` pairs, object
+//! patterns, whether progress lines stay as they are. Output: the destination holding the
+//! rewrite, and the [`ProcessReport`].
+//!
+//! Stages, in order: open ([`crate::input`]: checks, slicer settings) -> settings resolved for
+//! this file ([`crate::settings`]) -> region detection, Print-on-Air pass and splice
+//! ([`crate::emit::process`], which copies every other line byte for byte and updates the
+//! footer) -> finish (the `M73` progress lines get the added time; binary G-code is encoded
+//! again block by block) -> atomic write ([`crate::output`]). A file poa rewrote before is
+//! left alone (`Ok(None)`).
+
+use std::io::{BufRead, Read};
+use std::path::Path;
+
+use crate::emit::{self, ObjectFilter, ProcessOptions, ProcessReport};
+use crate::error::{Error, Result};
+use crate::layers::SlicerConfig;
+use crate::{bgcode, input, output, progress, settings};
+
+/// What the user asked of a rewrite, before the file's own settings are known.
+#[derive(Debug, Clone, Default)]
+pub struct Request {
+    /// `--profile`: a built-in name or a YAML file.
+    pub profile: Option<String>,
+    /// Named flags and `--set` pairs, in precedence order.
+    pub flags: Vec<(String, String)>,
+    /// `--objects` / `--skip-objects` patterns.
+    pub objects: Vec<String>,
+    pub skip_objects: Vec<String>,
+    /// Leave the slicer's `M73` lines as they are.
+    pub keep_progress: bool,
+}
+
+impl Request {
+    /// The settings in force for a file with `config`.
+    pub fn effective(&self, config: &SlicerConfig) -> Result<settings::Effective> {
+        settings::resolve(self.profile.as_deref(), config, &self.flags)
+            .map_err(|e| Error::Invalid(e.to_string()))
+    }
+
+    /// The pipeline's options for a file with `config`, header line included.
+    pub fn options(&self, config: &SlicerConfig) -> Result<ProcessOptions> {
+        let objects =
+            ObjectFilter::from_globs(&self.objects, &self.skip_objects).map_err(Error::Invalid)?;
+        let eff = self.effective(config)?;
+        let mut header = format!("{} {}:", emit::HEADER_MARK, env!("CARGO_PKG_VERSION"));
+        if let Some(p) = &eff.profile {
+            header.push_str(&format!(" profile {p};"));
+        }
+        let poa = eff.poa_settings();
+        let motion = emit::Motion::from_config(config, &poa);
+        header.push_str(&format!(" loops at {} mm/s;", motion.loop_speed));
+        header.push(' ');
+        header.push_str(&eff.summary());
+        Ok(ProcessOptions {
+            detect: eff.detect_options(config),
+            settings: poa,
+            objects,
+            header,
+        })
+    }
+
+    /// Whether the rewrite added time before progress lines that should show it.
+    fn updates_progress(&self, report: &ProcessReport) -> bool {
+        !self.keep_progress && report.has_progress_lines && !report.progress.is_empty()
+    }
+}
+
+/// Wraps the text reader (a progress bar, say); gets the file's size.
+pub type Wrap<'a> = &'a (dyn Fn(Box<dyn BufRead + Send>, u64) -> Box<dyn BufRead + Send> + Sync);
+
+/// The slicer's stated print times, which the progress lines count down from.
+fn totals(config: &SlicerConfig) -> progress::Totals {
+    let time = |k: &str| config.get(k).and_then(crate::estimate::parse_dhms);
+    progress::Totals {
+        normal: time("estimated_printing_time"),
+        silent: time("estimated_printing_time_silent"),
+    }
+}
+
+/// Rewrites `file` into `dest` (which may be `file` itself, for slicer mode; `None` is a dry
+/// run). Returns `None` when the file was already rewritten by poa and is left as it is.
+pub fn rewrite_file(
+    file: &Path,
+    dest: Option<&Path>,
+    inputs: &[&Path],
+    req: &Request,
+    wrap: Wrap<'_>,
+) -> Result<Option<ProcessReport>> {
+    let opened = input::open(file)?;
+    if emit::already_processed(&opened.head) {
+        return Ok(None);
+    }
+    let opts = req.options(&opened.config)?;
+    let totals = totals(&opened.config);
+    let reader = wrap(opened.reader, opened.size);
+    let read_err = |source| Error::Read {
+        path: file.to_path_buf(),
+        source,
+    };
+    // Reading and writing share the stream; say which side failed.
+    let stream_err = |e: std::io::Error, dest: &Path| -> Error {
+        if matches!(
+            e.kind(),
+            std::io::ErrorKind::Other
+                | std::io::ErrorKind::InvalidData
+                | std::io::ErrorKind::AlreadyExists
+        ) {
+            read_err(e)
+        } else {
+            Error::Write {
+                path: dest.to_path_buf(),
+                source: e,
+            }
+        }
+    };
+    let filter_err = |report: &ProcessReport| -> Result<()> {
+        object_filter_matches(file, report, &opts.objects).map_err(Error::Invalid)
+    };
+    let result = match (dest, opened.binary) {
+        (Some(dest), Some(mut layout)) => output::write_atomic_twice(
+            dest,
+            inputs,
+            // Binary G-code: the rewritten text goes to a first temporary file, then into G-code
+            // blocks after the metadata, which states the new totals.
+            |w| {
+                let report = emit::process(reader, opened.config, &opts, w)
+                    .map_err(|e| stream_err(e, dest))?;
+                filter_err(&report)?;
+                Ok(report)
+            },
+            |_| true,
+            |report, written, w| {
+                emit::update_binary_metadata(&mut layout.other, report);
+                let werr = |source| Error::Write {
+                    path: dest.to_path_buf(),
+                    source,
+                };
+                let mut blocks = bgcode::stream::GcodeWriter::new(w, &layout).map_err(werr)?;
+                if req.updates_progress(report) {
+                    progress::update(written, &mut blocks, &report.progress, totals)
+                        .map_err(werr)?;
+                } else {
+                    std::io::copy(&mut std::io::BufReader::new(written), &mut blocks)
+                        .map_err(werr)?;
+                }
+                blocks.finish().map_err(werr)?;
+                Ok(())
+            },
+        ),
+        (Some(dest), None) => output::write_atomic_twice(
+            dest,
+            inputs,
+            |w| {
+                let report = emit::process(reader, opened.config, &opts, w)
+                    .map_err(|e| stream_err(e, dest))?;
+                filter_err(&report)?;
+                Ok(report)
+            },
+            |report| req.updates_progress(report),
+            // The progress lines precede the layers that added time: a second pass over the
+            // written text gives them the new times.
+            |report, written, w| {
+                progress::update(written, w, &report.progress, totals)
+                    .map(|_| ())
+                    .map_err(|source| Error::Write {
+                        path: dest.to_path_buf(),
+                        source,
+                    })
+            },
+        ),
+        (None, _) => emit::process(reader, opened.config, &opts, &mut std::io::sink())
+            .map_err(read_err)
+            .and_then(|r| filter_err(&r).map(|_| r)),
+    };
+    match result {
+        Ok(r) => Ok(Some(r)),
+        // poa's header line past the head of the file: rewritten before, nothing written now.
+        Err(Error::Read { source, .. }) if emit::is_already_processed(&source) => Ok(None),
+        Err(e) => Err(e),
+    }
+}
+
+/// `--objects` / `--skip-objects` patterns must each name an object of the file: a typo would
+/// otherwise rewrite nothing (or everything) without a word.
+fn object_filter_matches(
+    file: &Path,
+    report: &ProcessReport,
+    filter: &ObjectFilter,
+) -> std::result::Result<(), String> {
+    let missing = filter.unmatched(&report.objects);
+    if missing.is_empty() {
+        return Ok(());
+    }
+    let objects = if report.objects.is_empty() {
+        "it labels no objects".to_string()
+    } else {
+        format!("its objects: {}", report.objects.join(", "))
+    };
+    Err(format!(
+        "object pattern {} matches no object of {}; {objects} (`poa info` lists them)",
+        missing
+            .iter()
+            .map(|m| format!("`{m}`"))
+            .collect::<Vec<_>>()
+            .join(", "),
+        file.display()
+    ))
+}
+
+/// Copies `file` to `dest` as it is (a file poa rewrote before), atomically.
+pub fn copy_file(file: &Path, dest: &Path, inputs: &[&Path]) -> Result<()> {
+    let mut src = std::fs::File::open(file).map_err(|source| Error::Read {
+        path: file.to_path_buf(),
+        source,
+    })?;
+    output::write_atomic(dest, inputs, |w| {
+        std::io::copy(&mut src, w)
+            .map(|_| ())
+            .map_err(|source| Error::Write {
+                path: dest.to_path_buf(),
+                source,
+            })
+    })
+}
+
+/// What [`ab_plate`] made.
+#[derive(Debug, Clone)]
+pub struct AbOutcome {
+    pub copy_name: String,
+    pub layers: usize,
+    pub report: ProcessReport,
+}
+
+/// `poa ab`: the A/B plate of `file` into `out`, the copy rewritten with Print-on-Air; its
+/// footer and progress lines count the copy and the loops.
+pub fn ab_plate(
+    file: &Path,
+    out: &Path,
+    ab: &crate::ab::AbOptions,
+    req: &Request,
+) -> Result<AbOutcome> {
+    output::check_not_input(out, &[file])?;
+    let mut opened = input::open(file)?;
+    if emit::already_processed(&opened.head) {
+        return Err(Error::Invalid(format!(
+            "{} was already rewritten by poa; make the A/B plate from the slicer's original",
+            file.display()
+        )));
+    }
+    let read_err = |source| Error::Read {
+        path: file.to_path_buf(),
+        source,
+    };
+    let mut text = Vec::new();
+    opened.reader.read_to_end(&mut text).map_err(read_err)?;
+    let plate = crate::ab::build(&text, &opened.config, ab).map_err(|e| {
+        Error::Invalid(format!(
+            "cannot make an A/B plate of {}: {e}",
+            file.display()
+        ))
+    })?;
+    let mut opts = req.options(&opened.config)?;
+    opts.objects = ObjectFilter::from_globs(&plate.copy_names, &[]).map_err(Error::Invalid)?;
+    // The statistics and progress lines count the copy too.
+    let totals = totals(&opened.config);
+    let mut text = Vec::with_capacity(plate.text.len());
+    progress::update(&plate.text[..], &mut text, &plate.added, totals).map_err(read_err)?;
+    let footer = footer_start(&text);
+    let fa = crate::layers::filament_area(opened.config.filament_diameter());
+    let tail = emit::update_footer(
+        &text[footer..],
+        plate.added_filament_mm,
+        plate.added_time_s,
+        fa,
+        opened.config.filament_density(),
+    );
+    text.truncate(footer);
+    text.extend_from_slice(&tail);
+    let scale = match (totals.normal, totals.silent) {
+        (Some(n), Some(s)) if n > 0.0 => s / n,
+        _ => 1.0,
+    };
+    let totals = progress::Totals {
+        normal: totals.normal.map(|t| t + plate.added_time_s),
+        silent: totals.silent.map(|t| t + plate.added_time_s * scale),
+    };
+    let mut result = Vec::new();
+    let report = emit::process(&text[..], opened.config, &opts, &mut result).map_err(read_err)?;
+    if req.updates_progress(&report) {
+        let mut fixed = Vec::with_capacity(result.len());
+        progress::update(&result[..], &mut fixed, &report.progress, totals).map_err(read_err)?;
+        result = fixed;
+    }
+    let bytes = match opened.binary {
+        Some(mut layout) => {
+            emit::update_binary_metadata(&mut layout.other, &report);
+            let werr = |source| Error::Write {
+                path: out.to_path_buf(),
+                source,
+            };
+            let mut blocks = bgcode::stream::GcodeWriter::new(Vec::new(), &layout).map_err(werr)?;
+            std::io::Write::write_all(&mut blocks, &result).map_err(werr)?;
+            blocks.finish().map_err(werr)?
+        }
+        None => result,
+    };
+    output::write_bytes(out, &[file], &bytes)?;
+    Ok(AbOutcome {
+        copy_name: plate.copy_name,
+        layers: plate.layers,
+        report,
+    })
+}
+
+/// Start of the line where the last 64 KiB of `text` begin: the statistics footer lies there.
+fn footer_start(text: &[u8]) -> usize {
+    let from = text.len().saturating_sub(64 * 1024);
+    if from == 0 {
+        return 0;
+    }
+    text[from..]
+        .iter()
+        .position(|&b| b == b'\n')
+        .map_or(text.len(), |i| from + i + 1)
+}
+
+/// `poa convert`: binary G-code to text, or PrusaSlicer text to binary (`libbgcode`: the
+/// reference converter's settings, print metadata uncompressed), whichever `input` is.
+pub fn convert_file(input: &Path, out: &Path, libbgcode: bool) -> Result<()> {
+    output::check_not_input(out, &[input])?;
+    let data = input::read_all(input)?;
+    let bytes = if bgcode::is_bgcode(&data) {
+        bgcode::decode(&data)
+            .map_err(|e| Error::NotGcode {
+                path: input.to_path_buf(),
+                reason: format!("the binary G-code is damaged: {e}"),
+            })?
+            .to_ascii()
+    } else {
+        let mut config = bgcode::BinarizeConfig::prusaslicer();
+        if libbgcode {
+            config.print_metadata = bgcode::Compression::None;
+        }
+        let file = bgcode::from_ascii(&data, &config)
+            .map_err(|e| Error::Invalid(format!("{}: {e}", input.display())))?;
+        bgcode::encode(&file)
+    };
+    output::write_bytes(out, &[input], &bytes)
+}
