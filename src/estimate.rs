@@ -19,8 +19,8 @@
 // Per-axis quantities live in parallel [X, Y, Z, E] arrays; an axis index reads clearest.
 #![allow(clippy::needless_range_loop)]
 
+use crate::config::SlicerConfig;
 use crate::gcode::{Command, Parsed};
-use crate::layers::SlicerConfig;
 use crate::machine::{Action, Move};
 
 const X: usize = 0;

@@ -9,6 +9,7 @@
 pub mod ab;
 pub mod bgcode;
 pub mod check;
+pub mod config;
 pub mod emit;
 pub mod error;
 pub mod estimate;

@@ -13,7 +13,9 @@
 //! - Layer boundaries come from the slicer's own markers when the file has them; otherwise from
 //!   the Z at which material is extruded (travel lifts and z-hops never start a layer).
 
-pub mod config;
+// The settings a file states about itself sit in their own stage, below this one, so that the
+// estimator (which layers use) can read them too.
+pub use crate::config;
 pub mod dialect;
 
 use std::collections::VecDeque;
