@@ -510,6 +510,19 @@ pub struct Previews {
     pub index: String,
 }
 
+/// Ends the reading of a file once the layer asked for is drawn; told apart from real errors
+/// by its type.
+#[derive(Debug)]
+struct Drawn;
+
+impl std::fmt::Display for Drawn {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("the layer is drawn")
+    }
+}
+
+impl std::error::Error for Drawn {}
+
 /// Reads `input` and renders layer `number` (1-based). `None` when the file has no such layer.
 pub fn preview_layer<R: BufRead + Send>(
     input: R,
@@ -527,8 +540,6 @@ pub fn preview_layer<R: BufRead + Send>(
             config,
         },
     );
-    // Stop reading once the layer is drawn: the rest of the file does not matter.
-    let stop = io::Error::other("done");
     let result = geometry::detect(reader, opts, |d| {
         if d.layer.kind != LayerKind::Layer {
             return Ok(());
@@ -547,13 +558,14 @@ pub fn preview_layer<R: BufRead + Send>(
                 regions: &numbered,
                 samples: &[],
             }));
-            return Err(io::Error::other("done"));
+            // Stop reading once the layer is drawn: the rest of the file does not matter.
+            return Err(io::Error::other(Drawn));
         }
         region_id += d.regions.len();
         Ok(())
     });
     match result {
-        Err(e) if svg.is_some() && e.to_string() == stop.to_string() => Ok(svg),
+        Err(e) if e.get_ref().is_some_and(|inner| inner.is::<Drawn>()) => Ok(svg),
         Err(e) => Err(e),
         Ok(()) => Ok(svg),
     }

@@ -43,6 +43,8 @@ pub enum BgcodeError {
     BadMagic,
     #[error("cannot convert this text to binary G-code: {0}")]
     InvalidText(String),
+    #[error("{0}")]
+    Limit(String),
     #[error("binary G-code version {0} is not supported (only version 1 is)")]
     UnsupportedVersion(u32),
     #[error("binary G-code file header is truncated ({len} bytes, 10 needed)")]

@@ -33,6 +33,12 @@ pub struct Layout {
     pub gcode_blocks: Vec<(usize, u64)>,
 }
 
+/// Most blocks a file may have (a 4 GiB print cut into 64 KiB G-code blocks has 65536).
+const MAX_BLOCKS: usize = 1 << 20;
+/// Most metadata and thumbnail blocks, and their decoded bytes, kept in memory.
+const MAX_OTHER_BLOCKS: usize = 4096;
+const MAX_OTHER_BYTES: usize = 64 << 20;
+
 /// Moves an error [`decode`] reported for a one-block file to the block's place in the file.
 fn relocate(e: BgcodeError, index: usize, offset: u64) -> BgcodeError {
     let off = offset as usize;
@@ -269,7 +275,19 @@ pub fn layout<R: Read + Seek>(r: &mut R, size: u64) -> Result<Layout, ReadError>
     let (mut gcode_at, mut gcode_format, mut gcode_blocks) = (None, None, Vec::new());
     let mut offset = FILE_HEADER_LEN as u64;
     let mut index = 0;
+    let mut kept_bytes = 0usize;
     while offset < size {
+        // A slicer writes a dozen metadata and thumbnail blocks and one G-code block per
+        // 64 KiB of text; far more is a file made to exhaust memory.
+        if index >= MAX_BLOCKS
+            || other.blocks.len() >= MAX_OTHER_BLOCKS
+            || kept_bytes > MAX_OTHER_BYTES
+        {
+            return Err(ReadError::Format(BgcodeError::Limit(format!(
+                "block {index} at offset {offset}: more blocks than any slicer writes (at most {MAX_BLOCKS} in all, {MAX_OTHER_BLOCKS} besides G-code, {} MiB of metadata and thumbnails)",
+                MAX_OTHER_BYTES >> 20
+            ))));
+        }
         let Some((kind, len)) = block_len(r, checksum, offset, size)? else {
             // Let the full reader say what is wrong.
             return Err(read_block(r, &header, index, offset, size)
@@ -293,9 +311,9 @@ pub fn layout<R: Read + Seek>(r: &mut R, size: u64) -> Result<Layout, ReadError>
             }
             gcode_blocks.push((index, offset));
         } else {
-            other
-                .blocks
-                .push(read_block(r, &header, index, offset, size)?);
+            let b = read_block(r, &header, index, offset, size)?;
+            kept_bytes += b.payload.len();
+            other.blocks.push(b);
         }
         offset += len;
         index += 1;
