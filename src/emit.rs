@@ -1301,7 +1301,14 @@ fn footer_line(
     old_g: &mut Option<f64>,
 ) -> Option<String> {
     let (key, value) = text.split_once(" = ")?;
-    let number = || value.trim().parse::<f64>().ok();
+    // A damaged statistic is left as it is, not added to.
+    let number = || {
+        value
+            .trim()
+            .parse::<f64>()
+            .ok()
+            .filter(|x| x.is_finite() && (0.0..1e12).contains(x))
+    };
     let new = match key {
         "; filament used [mm]" => format!("{:.2}", number()? + mm),
         "; filament used [cm3]" => format!("{:.2}", number()? + cm3),

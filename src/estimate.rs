@@ -720,7 +720,11 @@ pub fn format_dhms(seconds: f64) -> String {
     }
 }
 
-/// Parses `1d 2h 3m 4s` (any subset) into seconds.
+/// Longest print time a file may state: ten years. A longer (or negative) stated time is a
+/// damaged file, read as no statement rather than added to.
+pub const MAX_STATED_SECONDS: f64 = 10.0 * 365.0 * 86400.0;
+
+/// Parses `1d 2h 3m 4s` (any subset) into seconds; `None` past [`MAX_STATED_SECONDS`].
 pub fn parse_dhms(text: &str) -> Option<f64> {
     let mut total = 0.0;
     let mut any = false;
@@ -736,7 +740,7 @@ pub fn parse_dhms(text: &str) -> Option<f64> {
         };
         any = true;
     }
-    any.then_some(total)
+    (any && (0.0..=MAX_STATED_SECONDS).contains(&total)).then_some(total)
 }
 
 #[cfg(test)]

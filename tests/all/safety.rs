@@ -745,3 +745,34 @@ fn slicer_mode_prints_a_summary_on_a_terminal() {
     let o = run(&[&f2]);
     assert!(o.status.success() && o.stdout.is_empty());
 }
+
+/// Statistics a file states out of any range (a damaged footer) are left as they are, not
+/// added to: no `inf`, no 300-digit numbers, no day counts past the end of time.
+#[test]
+fn damaged_footer_statistics_are_left_alone() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = String::from_utf8(read(&sample("rect_overhang_prusa_rel.gcode"))).unwrap();
+    let bad: String = text
+        .lines()
+        .map(|l| {
+            if l.starts_with("; estimated printing time (normal mode)") {
+                "; estimated printing time (normal mode) = 999999999999999999999d 1h".to_string()
+            } else if l.starts_with("; filament used [mm]") {
+                "; filament used [mm] = 1e308".to_string()
+            } else {
+                l.to_string()
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
+        + "\n";
+    let f = dir.path().join("in.gcode");
+    std::fs::write(&f, &bad).unwrap();
+    let o = run(&[&f]);
+    assert!(o.status.success(), "{}", err(&o));
+    let out = std::fs::read_to_string(&f).unwrap();
+    assert!(out.contains("; filament used [mm] = 1e308\n"));
+    assert!(out.contains("= 999999999999999999999d 1h\n"));
+    assert!(!out.contains("= inf") && !out.contains("NaN"));
+    assert!(out.contains(";POA_BEGIN"));
+}
