@@ -120,18 +120,21 @@ pub fn rewrite_file(
     let filter_err = |report: &ProcessReport| -> Result<()> {
         object_filter_matches(file, report, &opts.objects).map_err(Error::Invalid)
     };
+    let config = opened.config;
+    // The rewrite itself, into the first temporary file.
+    let first_pass = |mut w: &mut dyn std::io::Write, dest: &Path| {
+        let report =
+            emit::process(reader, config, &opts, &mut w).map_err(|e| stream_err(e, dest))?;
+        filter_err(&report)?;
+        Ok(report)
+    };
     let result = match (dest, opened.binary) {
         (Some(dest), Some(mut layout)) => output::write_atomic_twice(
             dest,
             inputs,
             // Binary G-code: the rewritten text goes to a first temporary file, then into G-code
             // blocks after the metadata, which states the new totals.
-            |w| {
-                let report = emit::process(reader, opened.config, &opts, w)
-                    .map_err(|e| stream_err(e, dest))?;
-                filter_err(&report)?;
-                Ok(report)
-            },
+            |w| first_pass(w, dest),
             |_| true,
             |report, written, w| {
                 emit::update_binary_metadata(&mut layout.other, report);
@@ -154,12 +157,7 @@ pub fn rewrite_file(
         (Some(dest), None) => output::write_atomic_twice(
             dest,
             inputs,
-            |w| {
-                let report = emit::process(reader, opened.config, &opts, w)
-                    .map_err(|e| stream_err(e, dest))?;
-                filter_err(&report)?;
-                Ok(report)
-            },
+            |w| first_pass(w, dest),
             |report| req.updates_progress(report),
             // The progress lines precede the layers that added time: a second pass over the
             // written text gives them the new times.
@@ -172,9 +170,7 @@ pub fn rewrite_file(
                     })
             },
         ),
-        (None, _) => emit::process(reader, opened.config, &opts, &mut std::io::sink())
-            .map_err(read_err)
-            .and_then(|r| filter_err(&r).map(|_| r)),
+        (None, _) => first_pass(&mut std::io::sink(), file),
     };
     match result {
         Ok(r) => Ok(Some(r)),

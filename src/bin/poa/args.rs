@@ -113,30 +113,7 @@ pub enum Command {
         rewrite: RewriteArgs,
     },
     /// Simulate the deposition: how much of each layer rests on material already there.
-    Check {
-        file: PathBuf,
-        /// Machine-readable output.
-        #[arg(long)]
-        json: bool,
-        /// A point is supported when material lies within (0.5 - this) x its width.
-        #[arg(long, value_name = "SHARE", default_value_t = 0.25)]
-        overlap_min: f64,
-        /// Longest unsupported span counted as an intended bridge, mm.
-        #[arg(long, value_name = "MM", default_value_t = 10.0)]
-        max_bridge: f64,
-        /// Exit with status 2 when more than this many mm are printed in air.
-        #[arg(long, value_name = "MM")]
-        fail_in_air: Option<f64>,
-        /// Compare with this original: both side by side, and the layers that changed.
-        #[arg(long, value_name = "ORIGINAL")]
-        compare: Option<PathBuf>,
-        /// Also draw this layer (1 = first) with its bridged and in-air points, into -o.
-        #[arg(long, value_name = "N", requires = "output")]
-        svg_layer: Option<usize>,
-        /// Where --svg-layer writes its SVG.
-        #[arg(short, long, value_name = "OUT.svg")]
-        output: Option<PathBuf>,
-    },
+    Check(CheckArgs),
     /// Draw layers as SVG: the layer below, the strands by role, the regions over air.
     #[command(group(clap::ArgGroup::new("what").required(true).args(["layer", "regions"])))]
     Preview {
@@ -153,6 +130,33 @@ pub enum Command {
         #[command(flatten)]
         detect: DetectArgs,
     },
+}
+
+/// `poa check`'s flags.
+#[derive(clap::Args)]
+pub struct CheckArgs {
+    pub file: PathBuf,
+    /// Machine-readable output.
+    #[arg(long)]
+    pub json: bool,
+    /// A point is supported when material lies within (0.5 - this) x its width.
+    #[arg(long, value_name = "SHARE", default_value_t = 0.25)]
+    pub overlap_min: f64,
+    /// Longest unsupported span counted as an intended bridge, mm.
+    #[arg(long, value_name = "MM", default_value_t = 10.0)]
+    pub max_bridge: f64,
+    /// Exit with status 2 when more than this many mm are printed in air.
+    #[arg(long, value_name = "MM")]
+    pub fail_in_air: Option<f64>,
+    /// Compare with this original: both side by side, and the layers that changed.
+    #[arg(long, value_name = "ORIGINAL")]
+    pub compare: Option<PathBuf>,
+    /// Also draw this layer (1 = first) with its bridged and in-air points, into -o.
+    #[arg(long, value_name = "N", requires = "output")]
+    pub svg_layer: Option<usize>,
+    /// Where --svg-layer writes its SVG.
+    #[arg(short, long, value_name = "OUT.svg")]
+    pub output: Option<PathBuf>,
 }
 
 #[derive(Subcommand)]

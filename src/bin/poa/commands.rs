@@ -8,7 +8,7 @@ use printonair::emit::ProcessReport;
 use printonair::rewrite::{self, Request};
 use printonair::{input, output, preview, report};
 
-use crate::args::{DetectArgs, RewriteArgs};
+use crate::args::{CheckArgs, DetectArgs, RewriteArgs};
 use crate::print::{emit, error_text, skipped_line, summary_line, verbose_lines, write_stdout};
 
 /// Writes an output file atomically, refusing to write over any of `inputs`.
@@ -18,17 +18,17 @@ fn write_file(path: &Path, inputs: &[&Path], text: &str) -> anyhow::Result<()> {
 }
 
 /// `poa check`.
-#[allow(clippy::too_many_arguments)] // one per flag of the command
-pub fn check(
-    file: PathBuf,
-    json: bool,
-    overlap_min: f64,
-    max_bridge: f64,
-    fail_in_air: Option<f64>,
-    compare: Option<PathBuf>,
-    svg_layer: Option<usize>,
-    svg_out: Option<PathBuf>,
-) -> anyhow::Result<ExitCode> {
+pub fn check(args: CheckArgs) -> anyhow::Result<ExitCode> {
+    let CheckArgs {
+        file,
+        json,
+        overlap_min,
+        max_bridge,
+        fail_in_air,
+        compare,
+        svg_layer,
+        output: svg_out,
+    } = args;
     anyhow::ensure!(
         (0.0..0.5).contains(&overlap_min),
         "--overlap-min must be between 0 and 0.5"

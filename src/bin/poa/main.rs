@@ -139,25 +139,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             }
             Ok(ExitCode::SUCCESS)
         }
-        Command::Check {
-            file,
-            json,
-            overlap_min,
-            max_bridge,
-            fail_in_air,
-            compare,
-            svg_layer,
-            output,
-        } => commands::check(
-            file,
-            json,
-            overlap_min,
-            max_bridge,
-            fail_in_air,
-            compare,
-            svg_layer,
-            output,
-        ),
+        Command::Check(args) => commands::check(args),
         Command::Preview {
             file,
             layer,
