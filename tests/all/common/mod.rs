@@ -102,7 +102,13 @@ pub fn shared(test: &str) -> Option<PathBuf> {
 /// so that a skipped test shows in `cargo test` output.
 pub fn note(text: &str) {
     use std::io::Write;
-    let _ = writeln!(std::io::stderr(), "note: {text}");
+    // Once per text: a property test asks on every one of its cases.
+    static SAID: std::sync::Mutex<Vec<String>> = std::sync::Mutex::new(Vec::new());
+    let mut said = SAID.lock().unwrap_or_else(|e| e.into_inner());
+    if !said.iter().any(|s| s == text) {
+        said.push(text.to_string());
+        let _ = writeln!(std::io::stderr(), "note: {text}");
+    }
 }
 
 /// Whether an external tool the test needs is installed. Under CI (`CI` set) it must be:
