@@ -1014,68 +1014,76 @@ pub struct ProcessOptions {
     pub header: String,
 }
 
-/// Rewrites a whole file, streaming: reads `input`, writes `output`.
-pub fn process<R: BufRead + Send, W: Write>(
-    input: R,
-    config: SlicerConfig,
-    opts: &ProcessOptions,
-    output: &mut W,
-) -> io::Result<ProcessReport> {
-    let motion = Motion::from_config(&config, &opts.settings);
-    let loop_width = config.external_perimeter_width();
-    let filament_area = motion.filament_area;
-    let density = config.filament_density();
-    // The motion limits in force where each layer starts (the file changes them with M20x
-    // lines), for the time a rewrite adds.
-    let mut limits = crate::estimate::Estimator::new(crate::estimate::Limits::from_config(&config));
-    let mut reader = crate::layers::LayerReader::new(
-        input,
-        crate::layers::ReaderOptions {
-            keep_raw: true,
-            config,
-        },
-    );
-    let mut report = ProcessReport::default();
-    let mut emitted = 0u64;
-    let mut header_written = false;
-    let mut held: Option<Vec<u8>> = None;
-    let mut next_id = 0usize;
-    let mut names: Vec<String> = Vec::new();
-    crate::geometry::detect(reader.by_ref(), &opts.detect, |d| {
-        let mut layer = d.layer;
-        if holds_header(&layer.raw) {
-            return Err(already_processed_error());
+/// A per-layer pass: given a layer and what region detection found in it, the bytes that
+/// replace the layer (its lines with the pass's edits spliced in, every other line as read),
+/// or `None` to leave it as it is. Passes keep their own state across layers and add what
+/// they did to the report. Print-on-Air ([`PoaPass`]) is the first.
+pub trait Pass {
+    fn layer(
+        &mut self,
+        detected: &crate::geometry::Detected,
+        report: &mut ProcessReport,
+    ) -> Option<Vec<u8>>;
+}
+
+/// Print-on-Air as a pass: picks the regions the settings and object filters allow, plans
+/// their loops on all cores, splices them into the layer and accounts filament and time.
+pub struct PoaPass<'a> {
+    opts: &'a ProcessOptions,
+    motion: Motion,
+    loop_width: f64,
+    /// The motion limits in force where each layer starts (the file changes them with M20x
+    /// lines), for the time a rewrite adds.
+    limits: crate::estimate::Estimator,
+    /// Regions seen so far, for file-wide region numbers.
+    next_id: usize,
+}
+
+impl<'a> PoaPass<'a> {
+    pub fn new(config: &SlicerConfig, opts: &'a ProcessOptions) -> Self {
+        PoaPass {
+            opts,
+            motion: Motion::from_config(config, &opts.settings),
+            loop_width: config.external_perimeter_width(),
+            limits: crate::estimate::Estimator::new(crate::estimate::Limits::from_config(config)),
+            next_id: 0,
         }
-        if let Some(n) = &layer.objects {
-            names.clone_from(n);
-        }
-        if layer.kind == crate::layers::LayerKind::Layer {
-            report.layers += 1;
-        }
+    }
+}
+
+impl Pass for PoaPass<'_> {
+    fn layer(
+        &mut self,
+        d: &crate::geometry::Detected,
+        report: &mut ProcessReport,
+    ) -> Option<Vec<u8>> {
+        let layer = &d.layer;
         // Decide which regions to rewrite, then plan them on all cores.
         let mut chosen: Vec<(usize, &crate::geometry::Region)> = Vec::new();
         for r in &d.regions {
-            next_id += 1;
+            self.next_id += 1;
             report.regions_found += 1;
-            let object = r.object.and_then(|o| names.get(o as usize).cloned());
+            let object = r
+                .object
+                .and_then(|o| report.objects.get(o as usize).cloned());
             let skip = |reason: &str| SkippedRegion {
-                region: next_id,
+                region: self.next_id,
                 layer: layer.index + 1,
                 kind: r.kind,
                 reason: reason.to_string(),
             };
-            if !opts.settings.rewrites(r.kind) {
+            if !self.opts.settings.rewrites(r.kind) {
                 let why = match r.kind {
                     RegionKind::Bridge => "bridge (use --bridges poa to rewrite bridges)",
                     _ => "floating: nothing below to grow loops from",
                 };
                 report.skipped.push(skip(why));
-            } else if !opts.objects.allows(object.as_deref()) {
+            } else if !self.opts.objects.allows(object.as_deref()) {
                 report
                     .skipped
                     .push(skip("object excluded by --objects/--skip-objects"));
             } else {
-                chosen.push((next_id, r));
+                chosen.push((self.next_id, r));
             }
         }
         let start = layer
@@ -1084,9 +1092,9 @@ pub fn process<R: BufRead + Send, W: Write>(
             .map(|m| [m.position()[0], m.position()[1]])
             .unwrap_or([0.0, 0.0]);
         let widths = crate::poa::Widths {
-            loop_width,
-            perimeter_width: loop_width,
-            tolerance: opts.detect.tolerance_at(layer.height),
+            loop_width: self.loop_width,
+            perimeter_width: self.loop_width,
+            tolerance: self.opts.detect.tolerance_at(layer.height),
         };
         let plans: Vec<(usize, RegionKind, Plan)> = {
             use rayon::prelude::*;
@@ -1094,7 +1102,7 @@ pub fn process<R: BufRead + Send, W: Write>(
                 .par_iter()
                 .map(|(id, r)| {
                     let plan =
-                        crate::poa::plan(r, &d.below, &d.area, widths, &opts.settings, start);
+                        crate::poa::plan(r, &d.below, &d.area, widths, &self.opts.settings, start);
                     (*id, r.kind, plan)
                 })
                 .collect()
@@ -1115,11 +1123,12 @@ pub fn process<R: BufRead + Send, W: Write>(
         let rewritten = if rewrites.is_empty() {
             None
         } else {
-            let (bytes, mut stats) = rewrite_layer(&layer, &rewrites, &motion, &opts.settings);
+            let (bytes, mut stats) =
+                rewrite_layer(layer, &rewrites, &self.motion, &self.opts.settings);
             // The estimator plans motion only; the pauses poa wrote count on top.
             let dwell: f64 = stats.iter().map(|s| s.dwell_s).sum();
-            let added = layer_time(&limits, &layer, &bytes)
-                - layer_time(&limits, &layer, &layer.raw)
+            let added = layer_time(&self.limits, layer, &bytes)
+                - layer_time(&self.limits, layer, &layer.raw)
                 + dwell;
             // The planner's time for the layer, shared out like the simple model's estimates.
             let simple: f64 = stats.iter().map(|s| s.time_added_s.max(0.0)).sum();
@@ -1144,7 +1153,44 @@ pub fn process<R: BufRead + Send, W: Write>(
             }
             Some(bytes)
         };
-        limits.track_limits(&layer.raw);
+        self.limits.track_limits(&layer.raw);
+        rewritten
+    }
+}
+
+/// Rewrites a whole file, streaming: reads `input`, writes `output`.
+pub fn process<R: BufRead + Send, W: Write>(
+    input: R,
+    config: SlicerConfig,
+    opts: &ProcessOptions,
+    output: &mut W,
+) -> io::Result<ProcessReport> {
+    let mut pass = PoaPass::new(&config, opts);
+    let filament_area = pass.motion.filament_area;
+    let density = config.filament_density();
+    let mut reader = crate::layers::LayerReader::new(
+        input,
+        crate::layers::ReaderOptions {
+            keep_raw: true,
+            config,
+        },
+    );
+    let mut report = ProcessReport::default();
+    let mut emitted = 0u64;
+    let mut header_written = false;
+    let mut held: Option<Vec<u8>> = None;
+    crate::geometry::detect(reader.by_ref(), &opts.detect, |d| {
+        if holds_header(&d.layer.raw) {
+            return Err(already_processed_error());
+        }
+        if let Some(n) = &d.layer.objects {
+            report.objects.clone_from(n);
+        }
+        if d.layer.kind == crate::layers::LayerKind::Layer {
+            report.layers += 1;
+        }
+        let rewritten = pass.layer(&d, &mut report);
+        let mut layer = d.layer;
         // A layer passed through is moved to the output, not copied.
         let bytes = rewritten.unwrap_or_else(|| std::mem::take(&mut layer.raw));
         let block = if !header_written && !bytes.is_empty() {
@@ -1177,7 +1223,6 @@ pub fn process<R: BufRead + Send, W: Write>(
         }
         Ok(())
     })?;
-    report.objects = names;
     report.filament_added_cm3 = report.filament_added_mm * filament_area / 1000.0;
     report.filament_added_g = report.filament_added_cm3 * density;
     if let Some(last) = held {
