@@ -191,7 +191,7 @@ where
 }
 
 /// Regions found before [`check_region_density`] judges their density.
-const DENSITY_AFTER: u64 = 2_000;
+const DENSITY_AFTER: u64 = 500;
 /// Fewest lines of G-code per region in a sliced part: a layer with a region over air also
 /// prints the part's walls and infill, hundreds of lines. Files with a region every few lines
 /// (a million one-move layers) are made to exhaust time and memory, not to be printed.
