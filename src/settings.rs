@@ -520,7 +520,61 @@ const SLICER_FACTS: &[&str] = &[
 /// `poa config FILE` as text: the settings in force with their sources, then the slicer
 /// settings poa reads from the file and where each came from.
 pub fn describe(eff: &Effective, config: &SlicerConfig) -> String {
-    let mut t = eff.to_string();
+    let poa = eff.poa_settings();
+    let motion = crate::emit::Motion::from_config(config, &poa);
+    let detect = eff.detect_options(config);
+    let height = config.layer_height().unwrap_or(0.2);
+    let tolerance = detect.tolerance_at(height);
+    // What `auto` comes to for this file, and from where.
+    let resolved = |key: &str| -> Option<(String, &'static str)> {
+        let bridge = if config.number("bridge_speed").is_some_and(|v| v > 0.0) {
+            "auto: the file's bridge_speed"
+        } else {
+            "auto: no bridge_speed in the file"
+        };
+        Some(match key {
+            "loop_speed" => (format!("{} mm/s", motion.loop_speed), bridge),
+            "perimeter_speed" => (
+                format!("{} mm/s", motion.perimeter_speed),
+                "auto: loop_speed",
+            ),
+            "tolerance" => (
+                format!("{tolerance:.3} mm"),
+                "auto: half the external perimeter width",
+            ),
+            "overhang_angle" => (
+                format!("{:.1} deg", (tolerance / height).atan().to_degrees()),
+                "auto: from the tolerance",
+            ),
+            "min_width" => (
+                format!("{:.3} mm", detect.min_width()),
+                "auto: the external perimeter width",
+            ),
+            _ => return None,
+        })
+    };
+    let mut t = match &eff.profile {
+        Some(p) => format!("profile: {p}\n"),
+        None => "profile: none (built-in defaults)\n".to_string(),
+    };
+    for e in &eff.values {
+        let Some(s) = spec(e.key) else { continue };
+        let (value, source) = match (&e.value, resolved(e.key)) {
+            (Value::Word(w), Some((v, why))) if w == "auto" => (v, why.to_string()),
+            _ => (
+                format!("{} {}", e.value, s.unit).trim().to_string(),
+                e.source.to_string(),
+            ),
+        };
+        t.push_str(&format!(
+            "  {:<20} {:<12} {:<40} [{}; default {}]\n",
+            e.key,
+            value,
+            source,
+            range_text(s),
+            s.default
+        ));
+    }
     t.push_str("from the slicer (config block, overridden by SLIC3R_* variables):\n");
     for key in SLICER_FACTS {
         let v = config.get(key).unwrap_or("(not set)");
