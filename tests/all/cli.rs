@@ -304,6 +304,9 @@ fn help_config_and_profiles_agree_with_the_settings_table() {
     }
     assert!(!help.contains("0..0.9"));
     // `auto` is a source; the value shown is the one that will be used for this file.
-    assert!(config.contains("loop_speed 25 mm/s auto: the file's bridge_speed"), "{config}");
+    assert!(
+        config.contains("loop_speed 25 mm/s auto: the file's bridge_speed"),
+        "{config}"
+    );
     assert!(config.contains("tolerance 0.225 mm auto:"), "{config}");
 }
