@@ -480,29 +480,6 @@ impl Effective {
     }
 }
 
-impl fmt::Display for Effective {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match &self.profile {
-            Some(p) => writeln!(f, "profile: {p}")?,
-            None => writeln!(f, "profile: none (built-in defaults)")?,
-        }
-        for e in &self.values {
-            let Some(s) = spec(e.key) else { continue };
-            let v = format!("{} {}", e.value, s.unit);
-            writeln!(
-                f,
-                "  {:<20} {:<12} {:<24} [{}; default {}]",
-                e.key,
-                v.trim(),
-                e.source.to_string(),
-                range_text(s),
-                s.default
-            )?;
-        }
-        Ok(())
-    }
-}
-
 /// The slicer settings poa reads, as `poa config` lists them.
 const SLICER_FACTS: &[&str] = &[
     "filament_type",
