@@ -15,20 +15,12 @@
 
 use std::fmt::Write as _;
 
-use crate::emit::fmt_num;
+use crate::error::Error;
 use crate::gcode::{parse_line, split_lines, strip_terminator, Command};
 use crate::layers::{LayerKind, LayerReader, ReaderOptions, SlicerConfig};
 use crate::machine::{Action, Machine};
-
-/// Coordinates to the micron, as slicers write them.
-fn fmt(v: f64) -> String {
-    fmt_num(v, 3)
-}
-
-/// E values to 5 decimals, as slicers write them.
-fn fmt_e(v: f64) -> String {
-    fmt_num(v, 5)
-}
+use crate::pass::Pass;
+use crate::writer::{fmt_mm as fmt, MmPerMin, TravelStyle, Writer};
 
 /// How to lay out the copy.
 #[derive(Debug, Clone)]
@@ -189,21 +181,16 @@ fn detect_labels(text: &[u8]) -> Labels {
     }
 }
 
-/// Why an A/B plate cannot be made.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Refusal(pub String);
-
-impl std::fmt::Display for Refusal {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(&self.0)
-    }
+fn refused(why: impl Into<String>) -> Error {
+    Error::Refused(why.into())
 }
 
-/// Builds the A/B plate from the text of a slice.
-pub fn build(text: &[u8], config: &SlicerConfig, opts: &AbOptions) -> Result<AbPlate, Refusal> {
+/// Builds the A/B plate from the text of a slice: checks that the copy fits, then runs
+/// [`AbPass`] over the layers.
+pub fn build(text: &[u8], config: &SlicerConfig, opts: &AbOptions) -> Result<AbPlate, Error> {
     let d = opts.offset;
     if !(d[0].is_finite() && d[1].is_finite()) || (d[0] == 0.0 && d[1] == 0.0) {
-        return Err(Refusal("the offset must be a non-zero DX,DY in mm".into()));
+        return Err(refused("the offset must be a non-zero DX,DY in mm"));
     }
     let reader = LayerReader::new(
         text,
@@ -213,22 +200,65 @@ pub fn build(text: &[u8], config: &SlicerConfig, opts: &AbOptions) -> Result<AbP
         },
     );
     let mut layers = Vec::new();
-    let mut copied = Bounds::empty();
     for l in reader {
-        let l = l.map_err(|e| Refusal(format!("cannot read the file: {e}")))?;
+        layers.push(l.map_err(|e| refused(format!("cannot read the file: {e}")))?);
+    }
+    check_fits(&layers, config, opts)?;
+    if let Some(line) =
+        split_lines(text).position(|raw| parse_line(strip_terminator(raw)).is_code(b'G', 20.0))
+    {
+        return Err(refused(format!(
+            "line {} switches to inches (G20); poa ab needs a file in millimetres",
+            line + 1
+        )));
+    }
+    let labels = detect_labels(text);
+    let copy_names = copy_object_names(&layers, labels);
+    let mut pass = AbPass::new(config, d, labels, copy_names[0].clone());
+    let mut out: Vec<u8> = Vec::with_capacity(text.len() * 2);
+    for l in layers {
+        let found = crate::geometry::Detected::plain(l);
+        let at = out.len() as u64;
+        match pass.layer(&found)? {
+            Some(bytes) => out.extend_from_slice(&bytes),
+            None => out.extend_from_slice(&found.layer.raw),
+        }
+        // The pass counts progress offsets from its layer's start.
+        for a in &mut pass.added[pass.placed..] {
+            a.offset += at;
+        }
+        pass.placed = pass.added.len();
+    }
+    Ok(AbPlate {
+        text: out,
+        copy_name: copy_names[0].clone(),
+        copy_names,
+        layers: pass.count,
+        added_filament_mm: pass.added_filament,
+        added_time_s: pass.added_time,
+        added: pass.added,
+    })
+}
+
+/// Refuses a copy that would leave the bed or come within the gap of the original's
+/// material.
+fn check_fits(
+    layers: &[crate::layers::Layer],
+    config: &SlicerConfig,
+    opts: &AbOptions,
+) -> Result<(), Error> {
+    let mut copied = Bounds::empty();
+    for l in layers.iter().filter(|l| l.kind == LayerKind::Layer) {
         for p in &l.paths {
             for q in &p.points {
-                if l.kind == LayerKind::Layer {
-                    copied.add(*q, p.width / 2.0);
-                }
+                copied.add(*q, p.width / 2.0);
             }
         }
-        layers.push(l);
     }
     if copied.is_empty() {
-        return Err(Refusal("the file prints nothing to copy".into()));
+        return Err(refused("the file prints nothing to copy"));
     }
-    let copy = copied.shifted(d);
+    let copy = copied.shifted(opts.offset);
     // Clearance from every strand of the original (part, skirt, priming line), each by its
     // own box, so that a priming line along the bed's edge does not block the whole bed.
     let gap = layers
@@ -247,7 +277,7 @@ pub fn build(text: &[u8], config: &SlicerConfig, opts: &AbOptions) -> Result<AbP
         })
         .fold(f64::INFINITY, f64::min);
     if gap < opts.gap {
-        return Err(Refusal(format!(
+        return Err(refused(format!(
             "the copy would come within {gap:.1} mm of the original's material (at least {:.1} mm needed); choose a larger --offset",
             opts.gap
         )));
@@ -256,8 +286,8 @@ pub fn build(text: &[u8], config: &SlicerConfig, opts: &AbOptions) -> Result<AbP
         (Some(b), _) => vec![[b[0], b[1]], [b[2], b[1]], [b[2], b[3]], [b[0], b[3]]],
         (None, Some(p)) => p,
         (None, None) => {
-            return Err(Refusal(
-                "the file does not state its bed shape; pass --bed X0,Y0,X1,Y1".into(),
+            return Err(refused(
+                "the file does not state its bed shape; pass --bed X0,Y0,X1,Y1",
             ))
         }
     };
@@ -268,47 +298,76 @@ pub fn build(text: &[u8], config: &SlicerConfig, opts: &AbOptions) -> Result<AbP
         [copy.min[0], copy.max[1]],
     ];
     if let Some(c) = corners.iter().find(|c| !inside_polygon(&bed, **c)) {
-        return Err(Refusal(format!(
+        return Err(refused(format!(
             "the copy would leave the bed (its material would reach X{:.1} Y{:.1}); choose another --offset",
             c[0], c[1]
         )));
     }
+    Ok(())
+}
 
-    if let Some(line) =
-        split_lines(text).position(|raw| parse_line(strip_terminator(raw)).is_code(b'G', 20.0))
-    {
-        return Err(Refusal(format!(
-            "line {} switches to inches (G20); poa ab needs a file in millimetres",
-            line + 1
-        )));
+/// The A/B copy as a per-layer pass: after the original's last extrusion in each layer, a
+/// junction travel, the layer's lines shifted and relabelled, and a junction back.
+pub struct AbPass {
+    d: [f64; 2],
+    labels: Labels,
+    copy_name: String,
+    motion: Junction,
+    /// The original's label open where the current layer starts (a slicer may open it in
+    /// the layer before).
+    open: Option<Vec<u8>>,
+    /// Motion limits in force as the file goes (it changes accelerations per feature).
+    limits: crate::estimate::Estimator,
+    count: usize,
+    added_filament: f64,
+    added_time: f64,
+    /// Per copied layer, where its copy ends (from the layer's start until placed) and the
+    /// time it took.
+    added: Vec<crate::progress::Added>,
+    placed: usize,
+}
+
+impl AbPass {
+    fn new(config: &SlicerConfig, d: [f64; 2], labels: Labels, copy_name: String) -> AbPass {
+        AbPass {
+            d,
+            labels,
+            copy_name,
+            motion: Junction::from_config(config),
+            open: None,
+            limits: crate::estimate::Estimator::new(crate::estimate::Limits::from_config(config)),
+            count: 0,
+            added_filament: 0.0,
+            added_time: 0.0,
+            added: Vec::new(),
+            placed: 0,
+        }
     }
-    let labels = detect_labels(text);
-    let copy_names = copy_object_names(&layers, labels);
-    let copy_name = copy_names[0].clone();
-    let motion = Junction::from_config(config);
-    let mut out: Vec<u8> = Vec::with_capacity(text.len() * 2);
-    let mut count = 0;
-    // The original's label open where the current layer starts (a slicer may open it in the
-    // layer before).
-    let mut open: Option<Vec<u8>> = None;
-    // Motion limits in force as the file goes (it changes accelerations per feature).
-    let mut limits = crate::estimate::Estimator::new(crate::estimate::Limits::from_config(config));
-    let (mut added_filament, mut added_time) = (0.0, 0.0);
-    let mut added = Vec::new();
-    for l in &layers {
+
+    /// Passes a layer through unchanged, following its labels and limits.
+    fn pass_through(&mut self, l: &crate::layers::Layer) {
+        self.limits.track_limits(&l.raw);
+        for raw in split_lines(&l.raw) {
+            track_label(&mut self.open, raw, self.labels);
+        }
+    }
+}
+
+impl Pass for AbPass {
+    fn layer(&mut self, found: &crate::geometry::Detected) -> Result<Option<Vec<u8>>, Error> {
+        let l = &found.layer;
+        let (d, labels) = (self.d, self.labels);
         let lines: Vec<&[u8]> = split_lines(&l.raw).collect();
         let start = match (l.kind, l.start.as_deref()) {
             (LayerKind::Layer, Some(s)) => s,
             _ => {
-                out.extend_from_slice(&l.raw);
-                limits.track_limits(&l.raw);
+                self.pass_through(l);
                 if labels == Labels::Klipper {
+                    let mut out = l.raw.clone();
                     define_klipper_copies(&l.raw, d, &mut out);
+                    return Ok(Some(out));
                 }
-                for raw in &lines {
-                    track_label(&mut open, raw, labels);
-                }
-                continue;
+                return Ok(None);
             }
         };
         // The copy is the layer's lines up to its last extrusion: what follows is the next
@@ -326,87 +385,73 @@ pub fn build(text: &[u8], config: &SlicerConfig, opts: &AbOptions) -> Result<AbP
                 }
             }
         }
-        let open_at_start = open.clone();
+        if cut == 0 {
+            self.pass_through(l);
+            return Ok(None);
+        }
+        self.count += 1;
+        let open_at_start = self.open.clone();
+        let mut out: Vec<u8> = Vec::with_capacity(l.raw.len() * 2 + 512);
         for raw in &lines[..cut] {
             out.extend_from_slice(raw);
-            track_label(&mut open, raw, labels);
+            track_label(&mut self.open, raw, labels);
         }
-        if cut == 0 {
-            limits.track_limits(&l.raw);
-            for raw in &lines {
-                out.extend_from_slice(raw);
-                track_label(&mut open, raw, labels);
-            }
-            continue;
-        }
-        count += 1;
         let nl = if l.raw.windows(2).any(|w| w == b"\r\n") {
             "\r\n"
         } else {
             "\n"
         };
-        let open_at_cut = open.clone();
-        let mut block = String::new();
+        let open_at_cut = self.open.clone();
+        let copy_from = out.len();
         // Travels belong to no object: a cancelled object's moves are skipped by firmware.
         if let Some(o) = &open_at_cut {
-            block.push_str(&stop_label(o, labels, nl));
+            out.extend_from_slice(stop_label(o, labels, nl).as_bytes());
         }
-        motion.travel(&mut block, &at_cut, start, d, nl);
+        self.motion.travel(&mut out, &at_cut, start, d, nl);
         let mut copy_open = open_at_start.clone();
         if let Some(o) = &open_at_start {
-            block.push_str(&String::from_utf8_lossy(
-                &copy_line(o, d, labels).unwrap_or_default(),
-            ));
-            block.push_str(nl);
+            out.extend_from_slice(&copy_line(o, d, labels).unwrap_or_default());
+            out.extend_from_slice(nl.as_bytes());
         }
         if labels == Labels::None {
-            let _ = write!(block, "; printing object {copy_name}{nl}");
-            copy_open = Some(format!("; printing object {copy_name}").into_bytes());
+            let label = format!("; printing object {}", self.copy_name);
+            out.extend_from_slice(label.as_bytes());
+            out.extend_from_slice(nl.as_bytes());
+            copy_open = Some(label.into_bytes());
         }
-        let copy_from = out.len();
-        out.extend_from_slice(block.as_bytes());
         for raw in &lines[..cut] {
             if let Some(line) = copy_line(raw, d, labels) {
                 out.extend_from_slice(&line);
             }
             track_label(&mut copy_open, raw, labels);
         }
-        let mut back = String::new();
         if let Some(o) = &copy_open {
             let renamed = copy_line(o, d, labels).unwrap_or_else(|| o.clone());
-            back.push_str(&stop_label(&renamed, labels, nl));
+            out.extend_from_slice(stop_label(&renamed, labels, nl).as_bytes());
         }
         let mut shifted_end = at_cut.clone();
         shifted_end.shift_xy(d);
-        motion.travel(&mut back, &shifted_end, &at_cut, [0.0, 0.0], nl);
+        self.motion
+            .travel(&mut out, &shifted_end, &at_cut, [0.0, 0.0], nl);
         if let Some(o) = &open_at_cut {
-            back.push_str(&String::from_utf8_lossy(o));
-            back.push_str(nl);
+            out.extend_from_slice(o);
+            out.extend_from_slice(nl.as_bytes());
         }
-        out.extend_from_slice(back.as_bytes());
         // What the copy costs: its lines and both travels, from where the original stopped.
-        let (t, f) = crate::estimate::run_text(&limits, &at_cut, &out[copy_from..]);
-        added_filament += f;
-        added_time += t;
-        added.push(crate::progress::Added {
+        let (t, f) = crate::estimate::run_text(&self.limits, &at_cut, &out[copy_from..]);
+        self.added_filament += f;
+        self.added_time += t;
+        self.added.push(crate::progress::Added {
             offset: out.len() as u64,
             seconds: t,
         });
-        limits.track_limits(&l.raw);
+        self.limits.track_limits(&l.raw);
         for raw in &lines[cut..] {
             out.extend_from_slice(raw);
-            track_label(&mut open, raw, labels);
+            track_label(&mut self.open, raw, labels);
         }
+        Ok(Some(out))
     }
-    Ok(AbPlate {
-        text: out,
-        copy_name,
-        copy_names,
-        layers: count,
-        added_filament_mm: added_filament,
-        added_time_s: added_time,
-        added,
-    })
 }
 
 /// Follows object labels: `open` is the start line of the object being printed, if any.
@@ -507,7 +552,7 @@ fn copy_comment_name(name: &str) -> String {
 }
 
 /// Refuses what a shift of X and Y cannot follow.
-fn check_shiftable(p: &crate::gcode::Parsed<'_>, m: &Machine, line: u64) -> Result<(), Refusal> {
+fn check_shiftable(p: &crate::gcode::Parsed<'_>, m: &Machine, line: u64) -> Result<(), Error> {
     let Command::Code {
         letter: b'G',
         number,
@@ -516,17 +561,17 @@ fn check_shiftable(p: &crate::gcode::Parsed<'_>, m: &Machine, line: u64) -> Resu
         return Ok(());
     };
     if (0.0..=3.0).contains(&number) && m.xyz_relative() && (p.has(b'X') || p.has(b'Y')) {
-        return Err(Refusal(format!(
+        return Err(refused(format!(
             "line {line} moves X/Y in relative mode (G91); poa ab needs absolute coordinates"
         )));
     }
     if number == 20.0 {
-        return Err(Refusal(format!(
+        return Err(refused(format!(
             "line {line} switches to inches (G20); poa ab needs a file in millimetres"
         )));
     }
     if number == 92.0 && (p.has(b'X') || p.has(b'Y')) {
-        return Err(Refusal(format!(
+        return Err(refused(format!(
             "line {line} sets the X/Y position (G92); poa ab cannot shift such a file"
         )));
     }
@@ -699,81 +744,54 @@ fn shift_line(content: &[u8], d: [f64; 2]) -> Vec<u8> {
     out
 }
 
-/// The file's way of travelling (retraction, lift, travel speed: the rewrite's
-/// [`crate::emit::Motion`]), for the moves between the copies.
+/// The file's way of travelling (its [`TravelStyle`]), for the moves between the copies.
 struct Junction {
-    retract_length: f64,
-    retract_speed: f64,
-    deretract_speed: f64,
-    lift: f64,
-    travel_speed: f64,
-    firmware: bool,
+    style: TravelStyle,
 }
 
 impl Junction {
     fn from_config(config: &SlicerConfig) -> Junction {
-        let m = crate::emit::Motion::from_config(config, &crate::poa::PoaSettings::default());
-        Junction {
-            retract_length: m.retract_length,
-            retract_speed: m.retract_speed,
-            deretract_speed: m.deretract_speed,
-            // A lift clears the layer just printed even where the file travels without one.
-            lift: m.lift.clamp(0.2, 5.0),
-            travel_speed: m.travel_speed,
-            firmware: m.firmware_retraction,
-        }
+        let mut style = TravelStyle::from_config(config);
+        // A lift clears the layer just printed even where the file travels without one.
+        style.lift = style.lift.clamp(0.2, 5.0);
+        Junction { style }
     }
 
     /// Moves from state `from` to where `to` (shifted by `d`) expects the nozzle: retracted,
     /// lifted, travelled, lowered and primed back to `to`'s retraction, with `to`'s E counter
     /// and feedrate.
-    fn travel(&self, out: &mut String, from: &Machine, to: &Machine, d: [f64; 2], nl: &str) {
-        let relative = from.e_relative();
-        let mut e = from.e_logical();
-        let mut ewrite = |out: &mut String, de: f64, f: f64| {
-            e += de;
-            if relative {
-                let _ = write!(out, "G1 E{} F{}{nl}", fmt_e(de), fmt((f * 60.0).round()));
-            } else {
-                let _ = write!(out, "G1 E{} F{}{nl}", fmt_e(e), fmt((f * 60.0).round()));
-            }
-        };
+    fn travel(
+        &self,
+        out: &mut Vec<u8>,
+        from: &Machine,
+        to: &Machine,
+        d: [f64; 2],
+        nl: &'static str,
+    ) {
+        let t = &self.style;
+        let mut w = Writer::new(out, nl, from);
         let target_r = to.retracted.max(0.0);
-        let travel_r = self.retract_length.max(from.retracted).max(target_r);
-        if self.firmware {
+        let travel_r = t.retract_length.max(from.retracted).max(target_r);
+        if t.firmware_retraction {
             if !from.firmware_retracted {
-                let _ = write!(out, "G10{nl}");
+                w.line("G10");
             }
         } else if travel_r - from.retracted > 1e-6 {
-            ewrite(out, -(travel_r - from.retracted), self.retract_speed);
+            w.e_at(-(travel_r - from.retracted), t.retract_speed);
         }
         let (p, q) = (from.position(), to.position());
-        let z_up = p[2].max(q[2]) + self.lift;
-        let _ = write!(
-            out,
-            "G1 Z{} F{}{nl}",
-            fmt(z_up),
-            fmt((self.travel_speed * 60.0).round())
-        );
-        let _ = write!(
-            out,
-            "G1 X{} Y{} F{}{nl}",
-            fmt(q[0] + d[0]),
-            fmt(q[1] + d[1]),
-            fmt((self.travel_speed * 60.0).round())
-        );
-        let _ = write!(out, "G1 Z{}{nl}", fmt(q[2]));
-        if self.firmware {
+        w.z_at(p[2].max(q[2]) + t.lift, Some(t.travel_speed));
+        w.move_at([q[0] + d[0], q[1] + d[1]], t.travel_speed);
+        w.z_at(q[2], None);
+        if t.firmware_retraction {
             if !to.firmware_retracted {
-                let _ = write!(out, "G11{nl}");
+                w.line("G11");
             }
         } else if travel_r - target_r > 1e-6 {
-            ewrite(out, travel_r - target_r, self.deretract_speed);
+            w.e_at(travel_r - target_r, t.deretract_speed);
         }
-        if !relative {
-            let _ = write!(out, "G92 E{}{nl}", fmt_e(to.e_logical()));
-        }
-        let _ = write!(out, "G1 F{}{nl}", fmt(to.feedrate().round()));
+        w.reset_e(to.e_logical());
+        w.restore_feed(MmPerMin(to.feedrate().round()));
     }
 }
 
@@ -873,13 +891,13 @@ G1 X20 Y10 E5\nG1 X20 Y20 E6\nG1 X10 Y20 E7\nG1 X10 Y10 E8\nM486 S-1\nM104 S0 ; 
         let rel = PART.replacen("G1 X20 Y10 E1", "G91\nG1 X10 Y0 E1\nG90", 1);
         assert!(build(rel.as_bytes(), &config, &opts)
             .unwrap_err()
-            .0
+            .to_string()
             .contains("G91"));
         let no_bed = PART.replace("; bed_shape = 0x0,200x0,200x200,0x200\n", "");
         let cfg = SlicerConfig::parse(no_bed.as_bytes());
         assert!(build(no_bed.as_bytes(), &cfg, &opts)
             .unwrap_err()
-            .0
+            .to_string()
             .contains("--bed"));
         let with_bed = AbOptions {
             bed: Some([0.0, 0.0, 200.0, 200.0]),

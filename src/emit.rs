@@ -18,57 +18,37 @@ use std::io::{self, BufRead, Write};
 use geo::MultiPolygon;
 use serde::Serialize;
 
+use crate::error::Error;
 use crate::gcode::{parse_line, split_lines, strip_terminator};
 use crate::geometry::{clip_lines, RegionKind};
 use crate::layers::{flow_width, Layer, Role, SlicerConfig};
 use crate::machine::{Action, Machine};
+use crate::pass::Pass;
 use crate::poa::{polyline_length, Plan, PoaSettings, Strand, StrandKind};
+use crate::writer::{fmt_num, MmPerMin, MmPerS, TravelStyle, Writer};
 
-/// How the file moves between strands, read from its own settings.
+/// How the file moves between strands (its [`TravelStyle`]) and how fast poa prints.
 #[derive(Debug, Clone)]
 pub struct Motion {
     pub filament_area: f64,
-    /// Retraction length (mm of filament) and speeds (mm/s).
-    pub retract_length: f64,
-    pub retract_speed: f64,
-    pub deretract_speed: f64,
-    /// Z lift on travel (mm); 0 for none.
-    pub lift: f64,
-    pub travel_speed: f64,
-    pub travel_speed_z: f64,
-    /// Travels up to this long (mm) between loops go without retraction.
-    pub short_travel: f64,
-    pub firmware_retraction: bool,
-    /// Loop and perimeter speeds in mm/s, resolved from the settings and the file.
-    pub loop_speed: f64,
-    pub perimeter_speed: f64,
+    pub travel: TravelStyle,
+    /// Loop and perimeter speeds, resolved from the settings and the file.
+    pub loop_speed: MmPerS,
+    pub perimeter_speed: MmPerS,
 }
 
 impl Motion {
     pub fn from_config(config: &SlicerConfig, settings: &PoaSettings) -> Motion {
-        let num = |k: &str, d: f64| config.number(k).filter(|v| *v >= 0.0).unwrap_or(d);
-        let retract_speed = num("retract_speed", 35.0).max(1.0);
-        let deretract = num("deretract_speed", 0.0);
         let loop_speed = settings
             .loop_speed
-            .unwrap_or_else(|| num("bridge_speed", 25.0))
+            .or_else(|| config.number("bridge_speed").filter(|v| *v >= 0.0))
+            .unwrap_or(25.0)
             .max(1.0);
         Motion {
             filament_area: crate::layers::filament_area(config.filament_diameter()),
-            retract_length: config.retract_length(),
-            retract_speed,
-            deretract_speed: if deretract > 0.0 {
-                deretract
-            } else {
-                retract_speed
-            },
-            lift: num("retract_lift", 0.0).min(5.0),
-            travel_speed: num("travel_speed", 150.0).max(1.0),
-            travel_speed_z: num("travel_speed_z", 0.0).max(0.0),
-            short_travel: num("retract_before_travel", 2.0).max(0.0),
-            firmware_retraction: config.bool("use_firmware_retraction") == Some(true),
-            loop_speed,
-            perimeter_speed: settings.perimeter_speed.unwrap_or(loop_speed).max(1.0),
+            travel: TravelStyle::from_config(config),
+            loop_speed: MmPerS(loop_speed),
+            perimeter_speed: MmPerS(settings.perimeter_speed.unwrap_or(loop_speed).max(1.0)),
         }
     }
 
@@ -123,129 +103,6 @@ fn line_end(raw: &[u8]) -> &'static str {
 /// Roles whose strands inside a zone are replaced.
 fn replaced(role: Role) -> bool {
     role.is_part()
-}
-
-pub(crate) fn fmt_num(v: f64, decimals: usize) -> String {
-    let s = format!("{v:.decimals$}");
-    let s = if s.contains('.') {
-        s.trim_end_matches('0').trim_end_matches('.').to_string()
-    } else {
-        s
-    };
-    if s == "-0" {
-        "0".into()
-    } else {
-        s
-    }
-}
-
-/// Writes G-code lines with the file's line ending while tracking E and position.
-struct Writer<'a> {
-    out: &'a mut Vec<u8>,
-    nl: &'static str,
-    relative_e: bool,
-    /// The file's E counter (absolute mode).
-    e: f64,
-    pos: [f64; 3],
-    feed: f64,
-}
-
-impl Writer<'_> {
-    fn line(&mut self, s: &str) {
-        self.out.extend_from_slice(s.as_bytes());
-        self.out.extend_from_slice(self.nl.as_bytes());
-    }
-
-    fn e_word(&mut self, de: f64) -> String {
-        if self.relative_e {
-            format!("E{}", fmt_num(de, 5))
-        } else {
-            self.e += de;
-            format!("E{}", fmt_num(self.e, 5))
-        }
-    }
-
-    fn set_feed(&mut self, mm_s: f64) {
-        let f = (mm_s * 60.0).round();
-        if (f - self.feed).abs() > 0.5 {
-            self.line(&format!("G1 F{}", fmt_num(f, 0)));
-            self.feed = f;
-        }
-    }
-
-    fn extrude_to(&mut self, p: [f64; 2], de: f64) {
-        let e = self.e_word(de);
-        self.line(&format!(
-            "G1 X{} Y{} {e}",
-            fmt_num(p[0], 3),
-            fmt_num(p[1], 3)
-        ));
-        self.pos[0] = p[0];
-        self.pos[1] = p[1];
-    }
-
-    fn move_to(&mut self, p: [f64; 2]) {
-        self.line(&format!("G1 X{} Y{}", fmt_num(p[0], 3), fmt_num(p[1], 3)));
-        self.pos[0] = p[0];
-        self.pos[1] = p[1];
-    }
-
-    fn retract(&mut self, m: &Motion, length: f64) {
-        if m.firmware_retraction {
-            self.line("G10");
-        } else if length > 0.0 {
-            self.set_feed(m.retract_speed);
-            let e = self.e_word(-length);
-            self.line(&format!("G1 {e}"));
-        }
-    }
-
-    fn unretract(&mut self, m: &Motion, length: f64) {
-        if m.firmware_retraction {
-            self.line("G11");
-        } else if length > 0.0 {
-            self.set_feed(m.deretract_speed);
-            let e = self.e_word(length);
-            self.line(&format!("G1 {e}"));
-        }
-    }
-
-    fn set_z(&mut self, m: &Motion, z: f64) {
-        if (z - self.pos[2]).abs() > 1e-6 {
-            if m.travel_speed_z > 0.0 {
-                self.set_feed(m.travel_speed_z);
-            } else {
-                self.set_feed(m.travel_speed);
-            }
-            self.line(&format!("G1 Z{}", fmt_num(z, 3)));
-            self.pos[2] = z;
-        }
-    }
-
-    /// A travel with the file's retraction and lift. `primed` says whether the nozzle is
-    /// primed before (and must be after) the travel.
-    fn travel(&mut self, m: &Motion, to: [f64; 2], retract: bool) -> f64 {
-        let d = ((to[0] - self.pos[0]).powi(2) + (to[1] - self.pos[1]).powi(2)).sqrt();
-        if d < 1e-6 {
-            return 0.0;
-        }
-        let z = self.pos[2];
-        if retract {
-            self.retract(m, m.retract_length);
-            if m.lift > 0.0 {
-                self.set_z(m, z + m.lift);
-            }
-        }
-        self.set_feed(m.travel_speed);
-        self.move_to(to);
-        if retract {
-            if m.lift > 0.0 {
-                self.set_z(m, z);
-            }
-            self.unretract(m, m.retract_length);
-        }
-        d
-    }
 }
 
 /// The last `;TYPE:` and `;WIDTH:`-style lines seen, restored after a block so that G-code
@@ -455,30 +312,19 @@ fn resync(
         return;
     };
     let at = state.position();
-    let mut w = Writer {
-        out,
-        nl,
-        relative_e: state.e_relative(),
-        e: state.e_logical(),
-        pos: [from[0], from[1], at[2]],
-        feed: state.feedrate(),
-    };
     let d = ((at[0] - from[0]).powi(2) + (at[1] - from[1]).powi(2)).sqrt();
     if d < 1e-6 {
         return;
     }
+    let mut w = Writer::new(out, nl, state).at([from[0], from[1], at[2]]);
+    let t = &motion.travel;
     w.travel(
-        motion,
+        t,
         [at[0], at[1]],
-        d > motion.short_travel && !state.is_retracted(),
+        d > t.short_travel && !state.is_retracted(),
     );
-    let feed = state.feedrate();
-    if (w.feed - feed).abs() > 0.5 {
-        w.line(&format!("G1 F{}", fmt_num(feed, 0)));
-    }
-    if !w.relative_e && (w.e - state.e_logical()).abs() > 1e-9 {
-        w.line(&format!("G92 E{}", fmt_num(state.e_logical(), 5)));
-    }
+    w.feed_to(MmPerMin(state.feedrate()));
+    w.sync_e(state.e_logical());
 }
 
 /// Parameter intervals (in units of cumulative length along `pts`) of the polyline inside
@@ -647,14 +493,7 @@ fn split_move(
     let per_mm = m.e / total;
     let z = before.position()[2];
     let start = real.unwrap_or([m.from[0], m.from[1]]);
-    let mut w = Writer {
-        out,
-        nl,
-        relative_e: before.e_relative(),
-        e: before.e_logical(),
-        pos: [start[0], start[1], z],
-        feed: before.feedrate(),
-    };
+    let mut w = Writer::new(out, nl, before).at([start[0], start[1], z]);
     w.line(&format!(
         "; poa: split {}",
         String::from_utf8_lossy(original).trim()
@@ -665,40 +504,26 @@ fn split_move(
     for (p, len, ins) in pieces(pts, inside) {
         if ins {
             if real.is_none() {
-                *real = Some([w.pos[0], w.pos[1]]);
+                let p = w.position();
+                *real = Some([p[0], p[1]]);
             }
             removed.0 += len;
             removed.1 += len * per_mm;
         } else {
             if real.take().is_some() {
-                let d =
-                    ((file_pos[0] - w.pos[0]).powi(2) + (file_pos[1] - w.pos[1]).powi(2)).sqrt();
+                let d = dist(w.position(), file_pos);
                 if d > 1e-6 {
-                    w.travel(motion, file_pos, d > motion.short_travel);
+                    w.travel(&motion.travel, file_pos, d > motion.travel.short_travel);
                 }
             }
-            if (w.feed - m.feed).abs() > 0.5 {
-                w.line(&format!("G1 F{}", fmt_num(m.feed, 0)));
-                w.feed = m.feed;
-            }
+            w.feed_to(MmPerMin(m.feed));
             w.extrude_to(p, len * per_mm);
         }
         file_pos = p;
     }
-    if real.is_some() && (w.feed - m.feed).abs() > 0.5 {
-        // The modal feedrate after this line is the line's own.
-        w.line(&format!("G1 F{}", fmt_num(m.feed, 0)));
-        w.feed = m.feed;
-    } else if (w.feed - m.feed).abs() > 0.5 {
-        w.line(&format!("G1 F{}", fmt_num(m.feed, 0)));
-    }
-    if !w.relative_e {
-        // Back on the file's own E count.
-        let after = before.e_logical() + m.e;
-        if (w.e - after).abs() > 1e-9 {
-            w.line(&format!("G92 E{}", fmt_num(after, 5)));
-        }
-    }
+    // The modal feedrate after this line is the line's own; back on the file's E count.
+    w.feed_to(MmPerMin(m.feed));
+    w.sync_e(before.e_logical() + m.e);
     removed
 }
 
@@ -715,15 +540,8 @@ fn emit_block(
     tags: &Tags,
     stats: &mut RewriteStats,
 ) {
-    let relative = before.e_relative();
-    let mut w = Writer {
-        out,
-        nl,
-        relative_e: relative,
-        e: before.e_logical(),
-        pos: before.position(),
-        feed: before.feedrate(),
-    };
+    let mut w = Writer::new(out, nl, before);
+    let t = &motion.travel;
     let home = [before.position()[0], before.position()[1]];
     let plan = &rewrite.plan;
     w.line(&format!(
@@ -745,43 +563,37 @@ fn emit_block(
     // Get to the first strand like the file travels.
     if let Some(first) = plan.strands.first() {
         if was_retracted {
-            w.set_feed(motion.travel_speed);
-            travel += dist(w.pos, first.points[0]);
+            w.set_feed(t.travel_speed);
+            travel += dist(w.position(), first.points[0]);
             w.move_to(first.points[0]);
-            w.unretract(motion, before.retracted.max(0.0));
+            w.unretract(t, before.retracted.max(0.0));
         } else {
-            travel += w.travel(motion, first.points[0], true);
+            travel += w.travel(t, first.points[0], true);
         }
     }
-    w.line(&format!(
-        "M106 S{}",
-        fmt_num((settings.fan.clamp(0.0, 1.0) * 255.0).round(), 0)
-    ));
+    w.fan(settings.fan, false);
     // A temperature change only when the file says what the temperature is.
     let temp = before
         .hotend_temp
         .filter(|t| *t > 0.0 && settings.temperature_offset != 0.0);
-    if let Some(t) = temp {
-        w.line(&format!(
-            "M104 S{}",
-            fmt_num((t + settings.temperature_offset).max(0.0), 0)
-        ));
+    if let Some(c) = temp {
+        w.hotend(c + settings.temperature_offset);
     }
     let mut width_tag = f64::NAN;
     let mut last_loop = 0;
     for (i, s) in plan.strands.iter().enumerate() {
         if i > 0 {
-            let d = dist(w.pos, s.points[0]);
-            let short = d <= motion.short_travel.max(2.0 * s.width);
-            travel += w.travel(motion, s.points[0], !short);
-            time += d / motion.travel_speed;
+            let d = dist(w.position(), s.points[0]);
+            let short = d <= t.short_travel.max(2.0 * s.width);
+            travel += w.travel(t, s.points[0], !short);
+            time += t.travel_time(d);
         }
         if settings.dwell > 0.0
             && s.kind == StrandKind::Loop
             && s.loop_index != last_loop
             && last_loop > 0
         {
-            w.line(&format!("G4 P{}", fmt_num(settings.dwell * 1000.0, 0)));
+            w.dwell(settings.dwell);
             time += settings.dwell;
             stats.dwell_s += settings.dwell;
         }
@@ -799,40 +611,32 @@ fn emit_block(
         };
         w.set_feed(speed);
         write_strand(&mut w, s, per_mm, stats);
-        time += s.length() / speed;
+        time += s.length() / speed.0;
     }
     // Restore temperature, fan, position, retraction, feedrate, E counter and the slicer's tags.
-    if let Some(t) = temp {
-        w.line(&format!("M104 S{}", fmt_num(t, 0)));
+    if let Some(c) = temp {
+        w.hotend(c);
     }
-    let fan = (before.fan * 255.0).round();
-    if fan <= 0.0 {
-        w.line("M107");
-    } else {
-        w.line(&format!("M106 S{}", fmt_num(fan, 0)));
-    }
-    travel += dist(w.pos, home);
+    w.fan(before.fan, true);
+    travel += dist(w.position(), home);
     if was_retracted {
-        w.retract(motion, before.retracted.max(0.0));
-        w.set_feed(motion.travel_speed);
+        w.retract(t, before.retracted.max(0.0));
+        w.set_feed(t.travel_speed);
         w.move_to(home);
     } else {
-        w.travel(motion, home, true);
+        w.travel(t, home, true);
     }
-    time += travel / motion.travel_speed;
-    if (w.pos[2] - before.position()[2]).abs() > 1e-9 {
-        w.set_z(motion, before.position()[2]);
+    time += t.travel_time(travel);
+    if (w.position()[2] - before.position()[2]).abs() > 1e-9 {
+        w.set_z(t, before.position()[2]);
     }
-    let feed = before.feedrate();
-    w.line(&format!("G1 F{}", fmt_num(feed, 0)));
-    if !relative && (w.e - before.e_logical()).abs() > 1e-9 {
-        w.line(&format!("G92 E{}", fmt_num(before.e_logical(), 5)));
+    w.restore_feed(MmPerMin(before.feedrate()));
+    w.sync_e(before.e_logical());
+    if let Some(tag) = &tags.role {
+        w.line(tag);
     }
-    if let Some(t) = &tags.role {
-        w.line(t);
-    }
-    if let Some(t) = &tags.width {
-        w.line(t);
+    if let Some(tag) = &tags.width {
+        w.line(tag);
     }
     w.line(";POA_END");
     stats.travel_mm += travel;
@@ -1014,18 +818,6 @@ pub struct ProcessOptions {
     pub header: String,
 }
 
-/// A per-layer pass: given a layer and what region detection found in it, the bytes that
-/// replace the layer (its lines with the pass's edits spliced in, every other line as read),
-/// or `None` to leave it as it is. Passes keep their own state across layers and add what
-/// they did to the report. Print-on-Air ([`PoaPass`]) is the first.
-pub trait Pass {
-    fn layer(
-        &mut self,
-        detected: &crate::geometry::Detected,
-        report: &mut ProcessReport,
-    ) -> Option<Vec<u8>>;
-}
-
 /// Print-on-Air as a pass: picks the regions the settings and object filters allow, plans
 /// their loops on all cores, splices them into the layer and accounts filament and time.
 pub struct PoaPass<'a> {
@@ -1037,6 +829,8 @@ pub struct PoaPass<'a> {
     limits: crate::estimate::Estimator,
     /// Regions seen so far, for file-wide region numbers.
     next_id: usize,
+    /// What the pass did so far.
+    pub report: ProcessReport,
 }
 
 impl<'a> PoaPass<'a> {
@@ -1047,45 +841,52 @@ impl<'a> PoaPass<'a> {
             loop_width: config.external_perimeter_width(),
             limits: crate::estimate::Estimator::new(crate::estimate::Limits::from_config(config)),
             next_id: 0,
+            report: ProcessReport::default(),
         }
     }
-}
 
-impl Pass for PoaPass<'_> {
-    fn layer(
+    /// Numbers the layer's regions and picks those the settings and object filters allow;
+    /// the others go to the report with the reason.
+    fn choose<'r>(
         &mut self,
-        d: &crate::geometry::Detected,
-        report: &mut ProcessReport,
-    ) -> Option<Vec<u8>> {
-        let layer = &d.layer;
-        // Decide which regions to rewrite, then plan them on all cores.
-        let mut chosen: Vec<(usize, &crate::geometry::Region)> = Vec::new();
+        d: &'r crate::geometry::Detected,
+    ) -> Vec<(usize, &'r crate::geometry::Region)> {
+        let mut chosen = Vec::new();
         for r in &d.regions {
             self.next_id += 1;
+            let report = &mut self.report;
             report.regions_found += 1;
             let object = r
                 .object
                 .and_then(|o| report.objects.get(o as usize).cloned());
-            let skip = |reason: &str| SkippedRegion {
-                region: self.next_id,
-                layer: layer.index + 1,
-                kind: r.kind,
-                reason: reason.to_string(),
-            };
-            if !self.opts.settings.rewrites(r.kind) {
-                let why = match r.kind {
+            let why = if !self.opts.settings.rewrites(r.kind) {
+                match r.kind {
                     RegionKind::Bridge => "bridge (use --bridges poa to rewrite bridges)",
                     _ => "floating: nothing below to grow loops from",
-                };
-                report.skipped.push(skip(why));
+                }
             } else if !self.opts.objects.allows(object.as_deref()) {
-                report
-                    .skipped
-                    .push(skip("object excluded by --objects/--skip-objects"));
+                "object excluded by --objects/--skip-objects"
             } else {
                 chosen.push((self.next_id, r));
-            }
+                continue;
+            };
+            report.skipped.push(SkippedRegion {
+                region: self.next_id,
+                layer: d.layer.index + 1,
+                kind: r.kind,
+                reason: why.to_string(),
+            });
         }
+        chosen
+    }
+
+    /// Plans the chosen regions on all cores; regions where no loop fits go to the report.
+    fn plan(
+        &mut self,
+        d: &crate::geometry::Detected,
+        chosen: &[(usize, &crate::geometry::Region)],
+    ) -> Vec<RegionRewrite> {
+        let layer = &d.layer;
         let start = layer
             .start
             .as_ref()
@@ -1096,13 +897,13 @@ impl Pass for PoaPass<'_> {
             perimeter_width: self.loop_width,
             tolerance: self.opts.detect.tolerance_at(layer.height),
         };
+        let settings = &self.opts.settings;
         let plans: Vec<(usize, RegionKind, Plan)> = {
             use rayon::prelude::*;
             chosen
                 .par_iter()
                 .map(|(id, r)| {
-                    let plan =
-                        crate::poa::plan(r, &d.below, &d.area, widths, &self.opts.settings, start);
+                    let plan = crate::poa::plan(r, &d.below, &d.area, widths, settings, start);
                     (*id, r.kind, plan)
                 })
                 .collect()
@@ -1110,7 +911,7 @@ impl Pass for PoaPass<'_> {
         let mut rewrites = Vec::new();
         for (id, kind, plan) in plans {
             if plan.strands.is_empty() {
-                report.skipped.push(SkippedRegion {
+                self.report.skipped.push(SkippedRegion {
                     region: id,
                     layer: layer.index + 1,
                     kind,
@@ -1120,41 +921,56 @@ impl Pass for PoaPass<'_> {
                 rewrites.push(RegionRewrite { id, kind, plan });
             }
         }
+        rewrites
+    }
+
+    /// Adds a rewritten layer's filament and time (by the estimator, with the limits in
+    /// force) to the report.
+    fn account(&mut self, layer: &Layer, bytes: &[u8], mut stats: Vec<RewriteStats>) {
+        // The estimator plans motion only; the pauses poa wrote count on top.
+        let dwell: f64 = stats.iter().map(|s| s.dwell_s).sum();
+        let added = layer_time(&self.limits, layer, bytes)
+            - layer_time(&self.limits, layer, &layer.raw)
+            + dwell;
+        // The planner's time for the layer, shared out like the simple model's estimates.
+        let simple: f64 = stats.iter().map(|s| s.time_added_s.max(0.0)).sum();
+        let n = stats.len().max(1) as f64;
+        for s in &mut stats {
+            s.time_added_s = if simple > 0.0 {
+                added * s.time_added_s.max(0.0) / simple
+            } else {
+                added / n
+            };
+        }
+        let report = &mut self.report;
+        report.progress.push(crate::progress::Added {
+            offset: 0,
+            seconds: added,
+        });
+        for s in stats {
+            report.regions_rewritten += 1;
+            report.loops += s.loops;
+            report.filament_added_mm += s.written_filament_mm - s.removed_filament_mm;
+            report.time_added_s += s.time_added_s;
+            report.rewrites.push(s);
+        }
+    }
+}
+
+impl Pass for PoaPass<'_> {
+    fn layer(&mut self, d: &crate::geometry::Detected) -> Result<Option<Vec<u8>>, Error> {
+        let chosen = self.choose(d);
+        let rewrites = self.plan(d, &chosen);
+        let layer = &d.layer;
         let rewritten = if rewrites.is_empty() {
             None
         } else {
-            let (bytes, mut stats) =
-                rewrite_layer(layer, &rewrites, &self.motion, &self.opts.settings);
-            // The estimator plans motion only; the pauses poa wrote count on top.
-            let dwell: f64 = stats.iter().map(|s| s.dwell_s).sum();
-            let added = layer_time(&self.limits, layer, &bytes)
-                - layer_time(&self.limits, layer, &layer.raw)
-                + dwell;
-            // The planner's time for the layer, shared out like the simple model's estimates.
-            let simple: f64 = stats.iter().map(|s| s.time_added_s.max(0.0)).sum();
-            let n = stats.len().max(1) as f64;
-            for s in &mut stats {
-                s.time_added_s = if simple > 0.0 {
-                    added * s.time_added_s.max(0.0) / simple
-                } else {
-                    added / n
-                };
-            }
-            report.progress.push(crate::progress::Added {
-                offset: 0,
-                seconds: added,
-            });
-            for s in stats {
-                report.regions_rewritten += 1;
-                report.loops += s.loops;
-                report.filament_added_mm += s.written_filament_mm - s.removed_filament_mm;
-                report.time_added_s += s.time_added_s;
-                report.rewrites.push(s);
-            }
+            let (bytes, stats) = rewrite_layer(layer, &rewrites, &self.motion, &self.opts.settings);
+            self.account(layer, &bytes, stats);
             Some(bytes)
         };
         self.limits.track_limits(&layer.raw);
-        rewritten
+        Ok(rewritten)
     }
 }
 
@@ -1175,7 +991,6 @@ pub fn process<R: BufRead + Send, W: Write>(
             config,
         },
     );
-    let mut report = ProcessReport::default();
     let mut emitted = 0u64;
     let mut header_written = false;
     let mut held: Option<Vec<u8>> = None;
@@ -1184,12 +999,13 @@ pub fn process<R: BufRead + Send, W: Write>(
             return Err(already_processed_error());
         }
         if let Some(n) = &d.layer.objects {
-            report.objects.clone_from(n);
+            pass.report.objects.clone_from(n);
         }
         if d.layer.kind == crate::layers::LayerKind::Layer {
-            report.layers += 1;
+            pass.report.layers += 1;
         }
-        let rewritten = pass.layer(&d, &mut report);
+        let rewritten = pass.layer(&d).map_err(io::Error::other)?;
+        let report = &mut pass.report;
         let mut layer = d.layer;
         // A layer passed through is moved to the output, not copied.
         let bytes = rewritten.unwrap_or_else(|| std::mem::take(&mut layer.raw));
@@ -1223,6 +1039,7 @@ pub fn process<R: BufRead + Send, W: Write>(
         }
         Ok(())
     })?;
+    let mut report = pass.report;
     report.filament_added_cm3 = report.filament_added_mm * filament_area / 1000.0;
     report.filament_added_g = report.filament_added_cm3 * density;
     if let Some(last) = held {

@@ -17,8 +17,21 @@ pub enum Error {
         path: PathBuf,
         source: std::io::Error,
     },
+    /// A value or combination the user gave (flag, setting, glob) that cannot be used.
     #[error("{0}")]
     Invalid(String),
+    /// Input this command cannot handle, with the reason and what to do.
+    #[error("{0}")]
+    Refused(String),
+    /// A settings key, value or profile that is wrong.
+    #[error("{0}")]
+    Settings(#[from] crate::settings::SettingsError),
+    /// A binary G-code file that cannot be read.
+    #[error("{path}: {source}")]
+    Bgcode {
+        path: PathBuf,
+        source: crate::bgcode::BgcodeError,
+    },
 }
 
 pub type Result<T> = std::result::Result<T, Error>;

@@ -19,11 +19,13 @@ pub mod input;
 pub mod layers;
 pub mod machine;
 pub mod output;
+pub mod pass;
 pub mod poa;
 pub mod preview;
 pub mod progress;
 pub mod report;
 pub mod rewrite;
 pub mod settings;
+pub mod writer;
 
 pub use error::Error;

@@ -52,7 +52,7 @@ impl Request {
         }
         let poa = eff.poa_settings();
         let motion = emit::Motion::from_config(config, &poa);
-        header.push_str(&format!(" loops at {} mm/s;", motion.loop_speed));
+        header.push_str(&format!(" loops at {};", motion.loop_speed));
         header.push(' ');
         header.push_str(&eff.summary());
         Ok(ProcessOptions {

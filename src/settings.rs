@@ -510,11 +510,8 @@ pub fn describe(eff: &Effective, config: &SlicerConfig) -> String {
             "auto: no bridge_speed in the file"
         };
         Some(match key {
-            "loop_speed" => (format!("{} mm/s", motion.loop_speed), bridge),
-            "perimeter_speed" => (
-                format!("{} mm/s", motion.perimeter_speed),
-                "auto: loop_speed",
-            ),
+            "loop_speed" => (motion.loop_speed.to_string(), bridge),
+            "perimeter_speed" => (motion.perimeter_speed.to_string(), "auto: loop_speed"),
             "tolerance" => (
                 format!("{tolerance:.3} mm"),
                 "auto: half the external perimeter width",

@@ -33,6 +33,18 @@ pub struct Detected {
     pub regions: Vec<Region>,
 }
 
+impl Detected {
+    /// A layer with no geometry computed, for passes that need none.
+    pub fn plain(layer: Layer) -> Detected {
+        Detected {
+            layer,
+            area: MultiPolygon(Vec::new()),
+            below: MultiPolygon(Vec::new()),
+            regions: Vec::new(),
+        }
+    }
+}
+
 /// Layers read ahead of the geometry: the next batch, read while one is computed.
 const READ_AHEAD: usize = BATCH;
 /// ... and no more than this much of them ([`weight`]), so that peak memory stays flat
