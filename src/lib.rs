@@ -18,6 +18,7 @@ pub mod geometry;
 pub mod input;
 pub mod layers;
 pub mod machine;
+pub mod movemap;
 pub mod output;
 pub mod pass;
 pub mod poa;

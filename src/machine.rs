@@ -281,8 +281,6 @@ impl Machine {
         action
     }
 
-    /// A copy of the modal state without the diagnostics gathered so far: what a later stage
-    /// needs to re-interpret a stretch of lines from here.
     /// Moves the machine's idea of its position by `d` in X and Y (a translated copy of the
     /// same moves ends there).
     pub fn shift_xy(&mut self, d: [f64; 2]) {
@@ -290,6 +288,8 @@ impl Machine {
         self.pos[1] += d[1];
     }
 
+    /// A copy of the modal state without the diagnostics gathered so far: what a later stage
+    /// needs to re-interpret a stretch of lines from here.
     pub fn snapshot(&self) -> Machine {
         Machine {
             diagnostics: Diagnostics::default(),

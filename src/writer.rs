@@ -78,6 +78,10 @@ pub trait Kinematics: Sync {
     fn xy_words(&self, to: [f64; 3]) -> String;
     /// Words for a Z-only move.
     fn z_words(&self, to: [f64; 3]) -> String;
+    /// Words for a move in all three axes (a mapped move).
+    fn xyz_words(&self, to: [f64; 3]) -> String {
+        format!("{} {}", self.xy_words(to), self.z_words(to))
+    }
 }
 
 /// Three Cartesian axes, written as they are.
@@ -141,6 +145,27 @@ impl TravelStyle {
     }
 }
 
+/// The printer's state as written: E mode and counter, position, feedrate.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Pen {
+    pub relative_e: bool,
+    pub e: f64,
+    pub pos: [f64; 3],
+    pub feed: MmPerMin,
+}
+
+impl Pen {
+    /// The state the file's own lines leave the printer in.
+    pub fn of(state: &Machine) -> Pen {
+        Pen {
+            relative_e: state.e_relative(),
+            e: state.e_logical(),
+            pos: state.position(),
+            feed: MmPerMin(state.feedrate()),
+        }
+    }
+}
+
 /// Writes G-code lines with the file's line ending while tracking E, position and feedrate.
 pub struct Writer<'a> {
     out: &'a mut Vec<u8>,
@@ -165,6 +190,29 @@ impl<'a> Writer<'a> {
             pos: state.position(),
             feed: MmPerMin(state.feedrate()),
             kinematics: &Cartesian,
+        }
+    }
+
+    /// A writer continuing from a [`Pen`] (state kept across buffers).
+    pub fn resume(out: &'a mut Vec<u8>, nl: &'static str, pen: Pen) -> Writer<'a> {
+        Writer {
+            out,
+            nl,
+            relative_e: pen.relative_e,
+            e: pen.e,
+            pos: pen.pos,
+            feed: pen.feed,
+            kinematics: &Cartesian,
+        }
+    }
+
+    /// What the writer has left the printer at, to resume from.
+    pub fn pen(&self) -> Pen {
+        Pen {
+            relative_e: self.relative_e,
+            e: self.e,
+            pos: self.pos,
+            feed: self.feed,
         }
     }
 
@@ -246,6 +294,23 @@ impl<'a> Writer<'a> {
         let xy = self.kinematics.xy_words(to);
         let e = self.e_word(de);
         self.line(&format!("G1 {xy} {e}"));
+        self.pos = to;
+    }
+
+    /// A move to `to` in all three axes pushing `de` of filament (0 for a travel), at `feed`
+    /// (its own `F` word when it differs from the modal one, on the same line).
+    pub fn move_xyz(&mut self, to: [f64; 3], de: f64, feed: MmPerMin) {
+        let mut line = format!("G1 {}", self.kinematics.xyz_words(to));
+        if de != 0.0 {
+            let e = self.e_word(de);
+            line.push(' ');
+            line.push_str(&e);
+        }
+        if (feed.0 - self.feed.0).abs() > 0.5 {
+            line.push_str(&format!(" F{}", fmt_num(feed.0, 0)));
+            self.feed = feed;
+        }
+        self.line(&line);
         self.pos = to;
     }
 
