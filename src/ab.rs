@@ -354,6 +354,7 @@ impl AbPass {
 }
 
 impl Pass for AbPass {
+    /// Long by design: the copy of one layer in print order (original, junction, shifted copy with its labels, junction back); the label state it threads through would otherwise be passed around.
     fn layer(&mut self, found: &crate::geometry::Detected) -> Result<Option<Vec<u8>>, Error> {
         let l = &found.layer;
         let (d, labels) = (self.d, self.labels);

@@ -265,6 +265,8 @@ fn segments(layer: &Layer, filament_area: f64) -> impl Iterator<Item = Seg> + '_
 
 /// Checks `layer` against the layer below it. `keep_samples` keeps every sample (for pictures
 /// and tests).
+///
+/// Long by design: measures one layer's strands against the layer below in one pass, with the per-layer tallies every case updates.
 pub fn check_layer(
     below: Option<&Layer>,
     layer: &Layer,

@@ -219,7 +219,7 @@ impl SlicerConfig {
     /// Checks every setting of [`SLICER_RANGES`] the file or environment gives (each value of
     /// a per-extruder list). A value that is not a number is left to the getters' defaults;
     /// a number out of range is an error naming the setting, its value and where it came from.
-    pub fn check(&self) -> Result<(), String> {
+    pub fn check(&self) -> Result<(), crate::error::Error> {
         for &(key, lo, hi, unit) in SLICER_RANGES {
             let Some(v) = self.get(key) else { continue };
             for item in v.split([',', ';', '|']) {
@@ -245,9 +245,9 @@ impl SlicerConfig {
                 } else {
                     "the file's configuration".to_string()
                 };
-                return Err(format!(
+                return Err(crate::error::Error::Invalid(format!(
                     "slicer setting {key} = {item} (from {origin}) is outside {lo}-{hi} {unit}; fix it in the slicer and export again"
-                ));
+                )));
             }
         }
         Ok(())
@@ -285,16 +285,16 @@ mod tests {
     #[test]
     fn out_of_range_settings_are_refused_with_their_origin() {
         let c = SlicerConfig::parse(b"; external_perimeter_extrusion_width = 1e13\n");
-        let e = c.check().unwrap_err();
+        let e = c.check().unwrap_err().to_string();
         assert!(
             e.contains("external_perimeter_extrusion_width = 1e13"),
             "{e}"
         );
         assert!(e.contains("the file's configuration"), "{e}");
         let mut c = SlicerConfig::parse(b"; retract_length = 0.8\n; bridge_speed = 0\n");
-        assert_eq!(c.check(), Ok(()), "0 is auto");
+        assert!(c.check().is_ok(), "0 is auto");
         c.apply_env([("SLIC3R_TRAVEL_SPEED_Z".to_string(), "1e-9".to_string())]);
-        let e = c.check().unwrap_err();
+        let e = c.check().unwrap_err().to_string();
         assert!(e.contains("SLIC3R_TRAVEL_SPEED_Z"), "{e}");
         for bad in ["1e300%", "-1", "inf", "NaN"] {
             let c = SlicerConfig::parse(format!("; extrusion_width = {bad}\n").as_bytes());
@@ -302,7 +302,7 @@ mod tests {
         }
         let c =
             SlicerConfig::parse(b"; extrusion_width = 112.5%\n; filament_diameter = 1.75,2.85\n");
-        assert_eq!(c.check(), Ok(()));
+        assert!(c.check().is_ok());
         let c = SlicerConfig::parse(b"; filament_diameter = 1.75,1e9\n");
         assert!(c.check().is_err());
     }

@@ -126,6 +126,8 @@ impl Tags {
 }
 
 /// Rewrites one layer. Returns the new bytes and per-region statistics.
+///
+/// Long by design: one pass over the layer's lines with the splice state (where the nozzle really is, open blocks, tags) that every branch updates; the branches themselves call helpers.
 pub fn rewrite_layer(
     layer: &Layer,
     rewrites: &[RegionRewrite],
@@ -528,6 +530,8 @@ fn split_move(
 }
 
 /// Writes one region's strands, leaving the machine as `before` had it.
+///
+/// Long by design: writes one region's block top to bottom (approach, fan and temperature, strands, restore) in print order, so that what is set and what is restored read side by side.
 #[allow(clippy::too_many_arguments)]
 fn emit_block(
     out: &mut Vec<u8>,
@@ -773,8 +777,8 @@ pub struct ObjectFilter {
 
 impl ObjectFilter {
     /// Builds a filter from comma-separated glob lists (`*` and `?` wildcards).
-    pub fn from_globs(only: &[String], skip: &[String]) -> Result<Self, String> {
-        let conv = |g: &str| -> Result<regex::Regex, String> {
+    pub fn from_globs(only: &[String], skip: &[String]) -> Result<Self, Error> {
+        let conv = |g: &str| -> Result<regex::Regex, Error> {
             let mut re = String::from("^");
             for c in g.trim().chars() {
                 match c {
@@ -784,7 +788,8 @@ impl ObjectFilter {
                 }
             }
             re.push('$');
-            regex::Regex::new(&re).map_err(|e| format!("bad object pattern {g:?}: {e}"))
+            regex::Regex::new(&re)
+                .map_err(|e| Error::Invalid(format!("bad object pattern {g:?}: {e}")))
         };
         Ok(ObjectFilter {
             only: only.iter().map(|g| conv(g)).collect::<Result<_, _>>()?,
@@ -975,6 +980,8 @@ impl Pass for PoaPass<'_> {
 }
 
 /// Rewrites a whole file, streaming: reads `input`, writes `output`.
+///
+/// Long by design: the streaming driver (read, detect, pass, header, footer) whose hand-over of held blocks must stay in one place to be correct.
 pub fn process<R: BufRead + Send, W: Write>(
     input: R,
     config: SlicerConfig,

@@ -285,6 +285,8 @@ impl Estimator {
     }
 
     /// Takes one line in.
+    ///
+    /// Long by design: one match over the commands that change motion state or time (moves, dwell, limits, M-codes).
     pub fn line(&mut self, parsed: &Parsed<'_>, action: &Action) {
         if let Some(c) = parsed.comment {
             let c = c.trim_ascii();
@@ -402,6 +404,8 @@ impl Estimator {
         }
     }
 
+    /// Long by design: turns one move into a planner block in the firmware's order (per-axis
+    /// limits, acceleration by kind, junction speed), as Marlin's planner does in one function.
     fn block(&mut self, line: u64, delta: [f64; 4], feedrate: f64) {
         if delta.iter().any(|d| !d.is_finite()) || !feedrate.is_finite() {
             return;

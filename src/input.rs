@@ -85,7 +85,7 @@ pub fn open(path: &Path) -> Result<Opened> {
         config.add_text(&tail);
     }
     config.apply_env(std::env::vars());
-    config.check().map_err(Error::Invalid)?;
+    config.check()?;
     file.seek(SeekFrom::Start(0)).map_err(read_err)?;
     Ok(Opened {
         // Up to the size it had: a file that keeps growing is not read forever.
@@ -159,7 +159,7 @@ fn open_binary(path: &Path, file: File, size: u64) -> Result<Opened> {
         .map_err(|e| binary_read_error(path, e))?;
     config.add_text(&head);
     config.apply_env(std::env::vars());
-    config.check().map_err(Error::Invalid)?;
+    config.check()?;
     let reader = text_of(&file)?;
     Ok(Opened {
         reader: Box::new(reader),

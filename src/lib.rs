@@ -1,10 +1,17 @@
 //! poa: a slicer post-processor that prints overhangs on air.
 //!
 //! The library is a pipeline of stages, each its own module, dependencies pointing one way:
-//! [`gcode`] (lossless syntax) -> [`machine`] (modal state, absolute moves) -> [`layers`]
-//! (dialects, layer model) -> [`geometry`] (printed areas, regions over air) -> [`report`] and
-//! [`preview`] (what a user reads and sees). The binary `poa` only parses
-//! arguments, does file I/O and maps errors to exit codes.
+//! [`input`] (open, refuse what is not G-code, binary G-code via [`bgcode`]) -> [`gcode`]
+//! (lossless syntax) -> [`machine`] (modal state -> moves) -> [`layers`] (dialects, layer
+//! model; [`config`] the slicer's settings) -> [`geometry`] (the only module that touches
+//! Clipper: printed areas, regions over air) -> passes behind [`pass::Pass`] ([`emit`]'s
+//! Print-on-Air with the [`poa`] loop planner, [`ab`]'s A/B copy) and whole-stream
+//! [`movemap`]s -> one G-code [`writer`] (typed speeds, the kinematics seam) -> finish
+//! ([`progress`] M73, footer, [`output`]'s atomic writes); [`rewrite`] runs it for a file.
+//! [`estimate`], [`check`], [`report`] and [`preview`] read the same stages for what a user
+//! reads and sees; [`settings`] is the one table of poa's own settings. The binary `poa`
+//! only parses arguments, calls [`rewrite`] and the reports, prints and maps errors to exit
+//! codes.
 
 pub mod ab;
 pub mod bgcode;

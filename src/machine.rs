@@ -302,6 +302,7 @@ impl Machine {
         self.firmware_retracted || self.retracted > 1e-3
     }
 
+    /// Long by design: one match over the G/M codes the interpreter knows; each arm is short.
     fn interpret(&mut self, p: &Parsed<'_>, line: u64) -> Action {
         let (letter, code) = match p.command {
             // Sub-codes such as `G29.1` are not motion or mode commands we interpret.

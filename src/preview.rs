@@ -61,6 +61,8 @@ const PX_PER_MM: f64 = 14.0;
 const LEGEND_W: f64 = 46.0;
 
 /// Renders one layer as SVG text.
+///
+/// Long by design: one pass over the layers that draws the three views and the legend with shared scales and colours; the drawing helpers it calls are the reusable parts.
 pub fn render(scene: &Scene<'_>) -> String {
     // Drawing bounds: the strands, the area below and the regions.
     let mut bb = Bounds::default();

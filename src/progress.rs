@@ -96,6 +96,9 @@ pub fn update<R: Read, W: Write>(
 /// The line with new P/R (or Q/S) values; `None` when it is not a progress line.
 /// `last` holds the normal and silent percentages of the previous line: a display never
 /// counts backwards.
+///
+/// Long by design: rewrites one progress line in each form slicers write (P/R, Q/S,
+/// percent only), with the rounding and never-backwards rules of each.
 fn progress_line(
     raw: &[u8],
     before: f64,

@@ -153,6 +153,7 @@ pub fn info<R: BufRead>(input: R, config: SlicerConfig, file: &str) -> std::io::
 }
 
 impl fmt::Display for InfoReport {
+    /// Long by design: the report's text layout top to bottom, one section after another.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         writeln!(f, "{}", self.file)?;
         let version = if self.slicer_version.is_empty() {
@@ -314,6 +315,8 @@ pub fn detect_options(config: &SlicerConfig) -> DetectOptions {
 }
 
 /// Reads a file through region detection and summarises what lies over air.
+///
+/// Long by design: gathers every section of the analysis report in one pass over the detected layers.
 pub fn analyze<R: BufRead + Send>(
     input: R,
     config: SlicerConfig,
@@ -510,6 +513,9 @@ pub struct CheckReport {
 }
 
 /// Simulates the deposition of a whole file, layer by layer.
+///
+/// Long by design: one pass over the stream that simulates each layer, runs the time
+/// estimate and gathers the totals, which all read the same lines.
 pub fn check<R: BufRead + Send>(
     input: R,
     config: SlicerConfig,

@@ -43,8 +43,7 @@ impl Request {
 
     /// The pipeline's options for a file with `config`, header line included.
     pub fn options(&self, config: &SlicerConfig) -> Result<ProcessOptions> {
-        let objects =
-            ObjectFilter::from_globs(&self.objects, &self.skip_objects).map_err(Error::Invalid)?;
+        let objects = ObjectFilter::from_globs(&self.objects, &self.skip_objects)?;
         let eff = self.effective(config)?;
         let mut header = format!("{} {}:", emit::HEADER_MARK, env!("CARGO_PKG_VERSION"));
         if let Some(p) = &eff.profile {
@@ -83,6 +82,8 @@ fn totals(config: &SlicerConfig) -> progress::Totals {
 
 /// Rewrites `file` into `dest` (which may be `file` itself, for slicer mode; `None` is a dry
 /// run). Returns `None` when the file was already rewritten by poa and is left as it is.
+///
+/// Long by design: the whole rewrite of one file in pipeline order (open, passes, finish, binary re-encoding, atomic write) so that every error path is visible next to the write it guards.
 pub fn rewrite_file(
     file: &Path,
     dest: Option<&Path>,
@@ -118,7 +119,7 @@ pub fn rewrite_file(
         }
     };
     let filter_err = |report: &ProcessReport| -> Result<()> {
-        object_filter_matches(file, report, &opts.objects).map_err(Error::Invalid)
+        object_filter_matches(file, report, &opts.objects)
     };
     let config = opened.config;
     // The rewrite itself, into the first temporary file.
@@ -182,11 +183,7 @@ pub fn rewrite_file(
 
 /// `--objects` / `--skip-objects` patterns must each name an object of the file: a typo would
 /// otherwise rewrite nothing (or everything) without a word.
-fn object_filter_matches(
-    file: &Path,
-    report: &ProcessReport,
-    filter: &ObjectFilter,
-) -> std::result::Result<(), String> {
+fn object_filter_matches(file: &Path, report: &ProcessReport, filter: &ObjectFilter) -> Result<()> {
     let missing = filter.unmatched(&report.objects);
     if missing.is_empty() {
         return Ok(());
@@ -196,7 +193,7 @@ fn object_filter_matches(
     } else {
         format!("its objects: {}", report.objects.join(", "))
     };
-    Err(format!(
+    Err(Error::Invalid(format!(
         "object pattern {} matches no object of {}; {objects} (`poa info` lists them)",
         missing
             .iter()
@@ -204,7 +201,7 @@ fn object_filter_matches(
             .collect::<Vec<_>>()
             .join(", "),
         file.display()
-    ))
+    )))
 }
 
 /// Copies `file` to `dest` as it is (a file poa rewrote before), atomically.
@@ -260,7 +257,7 @@ pub fn ab_plate(
         ))
     })?;
     let mut opts = req.options(&opened.config)?;
-    opts.objects = ObjectFilter::from_globs(&plate.copy_names, &[]).map_err(Error::Invalid)?;
+    opts.objects = ObjectFilter::from_globs(&plate.copy_names, &[])?;
     // The statistics and progress lines count the copy too.
     let totals = totals(&opened.config);
     let mut text = Vec::with_capacity(plate.text.len());

@@ -201,6 +201,8 @@ fn invalid(line: usize, what: &str) -> BgcodeError {
 }
 
 /// Converts G-code text to binary G-code with the reference implementation's rules.
+///
+/// Long by design: one pass over the text that fills every block kind in file order; its cursor state is shared by all of them.
 pub fn from_ascii(text: &[u8], config: &BinarizeConfig) -> Result<Bgcode, BgcodeError> {
     let all = lines(text);
     let mut consumed = vec![false; all.len()];

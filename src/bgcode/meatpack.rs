@@ -181,6 +181,8 @@ fn is_g_parameter(c: u8) -> bool {
 }
 
 /// Decodes one block's MeatPack bytes to text, as libbgcode's reader does.
+///
+/// Long by design: the MeatPack decoder's state machine (signals, packed pairs, full-width escapes), kept as one loop like the reference implementation.
 pub(crate) fn decode(src: &[u8]) -> Vec<u8> {
     let mut unpacking = false;
     let mut no_spaces = false;

@@ -512,6 +512,8 @@ pub const MAX_BLOCK_DECODED: u64 = 16 << 20;
 pub const MAX_EXPANSION: u64 = 32;
 
 /// Reads a whole `.bgcode` file. Blocks may come in any order; each one is checked on its own.
+///
+/// Long by design: the block-by-block parser of the format's layout, each block kind checked against its spec in order; split up, the cursor and limits would be passed around.
 pub fn decode(data: &[u8]) -> Result<Bgcode, BgcodeError> {
     if data.len() >= 4 && !is_bgcode(data) {
         return Err(BgcodeError::BadMagic);

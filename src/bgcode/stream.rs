@@ -119,6 +119,8 @@ impl std::fmt::Display for ReadError {
 
 /// Reads the block at `offset` (its header first, to know its length), checks and decodes it.
 /// `size` is the file's length.
+///
+/// Long by design: reads one block with every limit of the format checked in order (header, sizes, caps, checksum).
 fn read_block<R: Read + Seek>(
     r: &mut R,
     header: &[u8; FILE_HEADER_LEN],

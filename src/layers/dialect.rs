@@ -237,6 +237,8 @@ fn num(s: &str) -> Option<f64> {
 }
 
 /// Recognises a comment (text after `;`, untrimmed).
+///
+/// Long by design: one match over every slicer's role and layer tags; each arm is a line or two.
 pub fn parse_tag(comment: &str) -> Option<Tag> {
     let c = comment.trim();
     let first = *c.as_bytes().first()?;

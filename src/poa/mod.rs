@@ -370,6 +370,9 @@ mod tests {
     }
 
     /// Plans every region of `area` over `below` and checks the plan's geometry.
+    ///
+    /// Long by design: the test's geometric checks of one plan (containment, bite, coverage,
+    /// supportedness), each measured next to the others.
     fn check(name: &str, below: MultiPolygon<f64>, area: MultiPolygon<f64>, overlap: f64) {
         let settings = PoaSettings {
             overlap,
