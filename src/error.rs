@@ -23,9 +23,6 @@ pub enum Error {
     /// Input this command cannot handle, with the reason and what to do.
     #[error("{0}")]
     Refused(String),
-    /// A settings key, value or profile that is wrong.
-    #[error("{0}")]
-    Settings(#[from] crate::settings::SettingsError),
     /// A binary G-code file that cannot be read.
     #[error("{path}: {source}")]
     Bgcode {
