@@ -225,12 +225,16 @@ pub fn outline_strands(layer: &Layer) -> Strands {
     match outline(layer) {
         // Perimeters and the other strands outline the part; what infill fills is closed in
         // by hole filling instead of being buffered strand by strand (the costly part).
-        Outline::Walls => Strands::of(
-            layer
+        Outline::Walls => {
+            let mut walls: Vec<&Path> = layer
                 .paths
                 .iter()
-                .filter(|p| supports(p.role) && !interior(p.role)),
-        ),
+                .filter(|p| supports(p.role) && !interior(p.role))
+                .collect();
+            let joins = wall_joins(layer);
+            walls.extend(joins.iter());
+            Strands::of(walls)
+        }
         Outline::Infill => Strands::of(
             layer
                 .paths
@@ -239,6 +243,44 @@ pub fn outline_strands(layer: &Layer) -> Strands {
         ),
         Outline::Bare => Strands::of(layer.paths.iter().filter(|p| supports(p.role))),
     }
+}
+
+/// Longest gap (mm) between two walls printed one after the other that is taken as one wall
+/// interrupted: Cura coasts over the end of a bridged wall (`bridge_wall_coast`) and so
+/// leaves a loop open by a millimetre or two, which would leave the part's outline unclosed.
+const WALL_JOIN: f64 = 2.5;
+
+fn is_wall(role: Role) -> bool {
+    matches!(
+        role,
+        Role::ExternalPerimeter | Role::Perimeter | Role::OverhangPerimeter
+    )
+}
+
+/// Short strands that join consecutive walls of one object across a gap up to
+/// [`WALL_JOIN`], for the outline only (nothing is printed there).
+fn wall_joins(layer: &Layer) -> Vec<Path> {
+    let mut joins = Vec::new();
+    for w in layer.paths.windows(2) {
+        let (a, b) = (&w[0], &w[1]);
+        if !(is_wall(a.role) && is_wall(b.role)) || a.object != b.object {
+            continue;
+        }
+        let (Some(&end), Some(&start)) = (a.points.last(), b.points.first()) else {
+            continue;
+        };
+        let gap = ((end[0] - start[0]).powi(2) + (end[1] - start[1]).powi(2)).sqrt();
+        if gap > 1e-6 && gap <= WALL_JOIN {
+            joins.push(Path {
+                points: vec![end, start],
+                seg_line: vec![0],
+                seg_e: vec![0.0],
+                width: a.width.min(b.width),
+                ..a.clone()
+            });
+        }
+    }
+    joins
 }
 
 /// The area a layer covers for the layer above, holes that are infill gaps closed.
@@ -502,6 +544,29 @@ mod tests {
         assert!((a - b).abs() < 1e-3 * b, "{a} vs {b}");
         // One part: no split.
         assert!(Strands::of(&paths[..1]).split().is_none());
+    }
+
+    #[test]
+    fn a_wall_open_by_a_coasted_gap_still_outlines_the_part() {
+        // Cura coasts over the last 1.9 mm of a bridged wall: the loop is open there, and
+        // the bridge skin inside would otherwise be strays with gaps between them.
+        let w = 0.4;
+        let mut paths = vec![
+            path(Role::ExternalPerimeter, w, &[[0.0, 20.0], [0.0, 0.0], [8.1, 0.0]]),
+            path(
+                Role::OverhangPerimeter,
+                w,
+                &[[10.0, 0.0], [50.0, 0.0], [50.0, 20.0], [10.0, 20.0]],
+            ),
+            path(Role::ExternalPerimeter, w, &[[10.0, 20.0], [0.0, 20.0]]),
+        ];
+        for i in 1..49 {
+            let x = i as f64 * 1.0;
+            paths.push(path(Role::BridgeInfill, w, &[[x, 0.4], [x, 19.6]]));
+        }
+        let a = printed_area(&layer(paths), &AreaOptions::default());
+        assert!((a.unsigned_area() - 50.4 * 20.4).abs() < 5.0, "{}", a.unsigned_area());
+        assert!(a.0.iter().all(|p| p.interiors().is_empty()));
     }
 
     fn layer(paths: Vec<Path>) -> Layer {

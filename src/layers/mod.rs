@@ -740,8 +740,16 @@ impl State {
     }
 
     fn extend_path(&mut self, m: &Move, line: u64) {
+        // Cura's `;BRIDGE` marks the current feature as printed with bridge settings: a
+        // bridged wall is still the part's outline (an overhang perimeter, as PrusaSlicer tags
+        // it), bridged skin is bridge infill.
         let role = if self.cura_bridge {
-            Role::BridgeInfill
+            match self.role_tag {
+                Some(Role::ExternalPerimeter | Role::Perimeter | Role::OverhangPerimeter) => {
+                    Role::OverhangPerimeter
+                }
+                _ => Role::BridgeInfill,
+            }
         } else {
             match (self.role_tag, self.cur.kind) {
                 (Some(r), _) => r,

@@ -286,3 +286,79 @@ pub fn slice_mesh(mesh: &Mesh, args: &[&str]) -> Option<Vec<u8>> {
     mesh.write(&stl);
     slice_stl(&stl, args)
 }
+
+/// Cura's printer definitions (fdmprinter.def.json and the machines inheriting it): Debian
+/// ships them in the `cura` GUI package, not in cura-engine. `CURA_DEFINITIONS` names the
+/// folder (`.ci/run` unpacks them from `apt-get download cura`).
+pub fn cura_definitions() -> Option<PathBuf> {
+    let candidates = std::env::var_os("CURA_DEFINITIONS")
+        .map(PathBuf::from)
+        .into_iter()
+        .chain([
+            PathBuf::from("/usr/share/cura/resources/definitions"),
+            repo().join("target/cura/usr/share/cura/resources/definitions"),
+        ]);
+    for d in candidates {
+        if d.join("fdmprinter.def.json").is_file() {
+            return Some(d);
+        }
+    }
+    None
+}
+
+/// CuraEngine and its definitions; skips with a note outside CI when either is missing.
+pub fn have_cura() -> bool {
+    if !have("CuraEngine", &["help"], "apt-get install -y cura-engine") {
+        return false;
+    }
+    if cura_definitions().is_some() {
+        return true;
+    }
+    assert!(
+        std::env::var_os("CI").is_none(),
+        "Cura's definitions are needed under CI (set CURA_DEFINITIONS; .ci/run unpacks them)"
+    );
+    note("a test skipped: Cura's definitions are missing (apt-get download cura; set CURA_DEFINITIONS)");
+    false
+}
+
+/// Slices `stl` with CuraEngine and the machine definition `machine` (e.g. `prusa_i3_mk3`)
+/// plus `settings` (`key=value`), given globally and to extruder 0 (CuraEngine does not
+/// evaluate the definitions' formulas; extruder settings shadow global ones). 1.75 mm
+/// filament; the part is centred on the bed.
+pub fn slice_cura(stl: &Path, machine: &str, settings: &[&str]) -> Option<Vec<u8>> {
+    if !have_cura() {
+        return None;
+    }
+    let defs = cura_definitions()?;
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out.gcode");
+    let mut cmd = std::process::Command::new("CuraEngine");
+    cmd.arg("slice")
+        .arg("-j")
+        .arg(defs.join(format!("{machine}.def.json")));
+    let all: Vec<&str> = ["material_diameter=1.75", "center_object=true"]
+        .into_iter()
+        .chain(settings.iter().copied())
+        .collect();
+    for s in &all {
+        cmd.arg("-s").arg(s);
+    }
+    cmd.arg("-e0");
+    for s in &all {
+        cmd.arg("-s").arg(s);
+    }
+    let o = cmd.arg("-l").arg(stl).arg("-o").arg(&out).output().unwrap();
+    assert!(
+        o.status.success(),
+        "CuraEngine failed on {}: {}",
+        stl.display(),
+        String::from_utf8_lossy(&o.stderr)
+            .lines()
+            .rev()
+            .take(5)
+            .collect::<Vec<_>>()
+            .join("\n")
+    );
+    Some(std::fs::read(&out).unwrap())
+}

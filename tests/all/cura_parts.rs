@@ -1,0 +1,138 @@
+//! Cura slices from several machine definitions and settings sets: the real region is found
+//! on the first floating layer (not on the layer above), and the rewrite leaves nothing in
+//! air there. Cura tags bridged walls and skin with `;BRIDGE` and coasts over the end of a
+//! bridged wall, which once left the outline open and the region unseen.
+
+use crate::common::*;
+
+use printonair::check::CheckOptions;
+use printonair::layers::SlicerConfig;
+use printonair::poa::BridgeMode;
+
+/// (machine definition, settings): three printers, bridge settings on and off, grid and
+/// lines infill, 0.1-0.2 mm layers.
+const SETS: &[(&str, &[&str])] = &[
+    (
+        "prusa_i3_mk3",
+        &[
+            "bridge_settings_enabled=true",
+            "layer_height=0.2",
+            "infill_pattern=grid",
+            "infill_sparse_density=15",
+            "infill_line_distance=5.33",
+        ],
+    ),
+    (
+        "creality_ender3",
+        &[
+            "bridge_settings_enabled=true",
+            "infill_pattern=lines",
+            "infill_sparse_density=20",
+        ],
+    ),
+    (
+        "anycubic_i3_mega",
+        &[
+            "layer_height=0.15",
+            "wall_line_count=3",
+            "infill_pattern=grid",
+            "infill_sparse_density=15",
+            "infill_line_distance=5.33",
+        ],
+    ),
+];
+
+/// Both test parts rise 10 mm before the slab: the first floating layer is the first whose
+/// slicing plane (mid-layer, as Cura and PrusaSlicer slice) lies above.
+const LIFT: f64 = 10.0;
+
+fn first_floating_z(data: &[u8]) -> f64 {
+    let layers = all_layers(data);
+    layers
+        .iter()
+        .filter(|l| {
+            l.kind == printonair::layers::LayerKind::Layer && l.z - l.height / 2.0 > LIFT + 1e-3
+        })
+        .map(|l| l.z)
+        .fold(f64::INFINITY, f64::min)
+}
+
+#[test]
+fn the_first_floating_layer_is_found_and_nothing_above_it() {
+    for (machine, settings) in SETS {
+        for part_name in ["rect_overhang", "bridge"] {
+            let Some(data) = slice_cura(&part(part_name), machine, settings) else {
+                return;
+            };
+            let config = SlicerConfig::parse(&data);
+            let opts = printonair::report::detect_options(&config);
+            let rep = printonair::report::analyze(&data[..], config, &opts, part_name).unwrap();
+            let z = first_floating_z(&data);
+            let what = format!("{part_name} by Cura ({machine}, {settings:?})");
+            assert!(!rep.regions.is_empty(), "{what}: no region found");
+            for r in &rep.regions {
+                assert!(
+                    (r.z - z).abs() < 1e-6,
+                    "{what}: region {} at Z {} (first floating layer Z {z})",
+                    r.id,
+                    r.z
+                );
+            }
+            let area: f64 = rep.regions.iter().map(|r| r.area_mm2).sum();
+            // The slab's floating part is 40 x 20 mm, less the walls' own width.
+            assert!(area > 700.0 && area < 820.0, "{what}: region area {area}");
+        }
+    }
+}
+
+#[test]
+fn the_rewrite_leaves_nothing_in_air_on_the_first_floating_layer() {
+    for (machine, settings) in SETS {
+        let Some(data) = slice_cura(&part("rect_overhang"), machine, settings) else {
+            return;
+        };
+        let what = format!("rect_overhang by Cura ({machine}, {settings:?})");
+        let z = first_floating_z(&data);
+        let (out, rep) = rewrite(&data, BridgeMode::Keep);
+        assert_eq!(rep.regions_rewritten, 1, "{what}");
+        let check = |d: &[u8]| {
+            printonair::report::check(d, SlicerConfig::parse(d), &CheckOptions::default(), "x")
+                .unwrap()
+        };
+        let (before, after) = (check(&data), check(&out));
+        let at = |c: &printonair::report::CheckReport| {
+            c.layers
+                .iter()
+                .find(|l| (l.z - z).abs() < 1e-6)
+                .map(|l| (l.in_air_mm, l.length_mm, l.supported_mm + l.bridged_mm))
+                .unwrap()
+        };
+        let (air0, _, _) = at(&before);
+        let (air1, len1, held1) = at(&after);
+        assert!(
+            air0 > 500.0,
+            "{what}: the slice should print the slab in air ({air0} mm)"
+        );
+        // What stays in air is the slicer's own sparse infill, printed before the walls on
+        // that layer, whose tips end a tenth of a millimetre short of the wall below.
+        assert!(
+            air1 <= 1.0 || air1 <= 0.005 * air0,
+            "{what}: {air1} mm still in air ({air0} before)"
+        );
+        assert!(held1 >= 0.99 * len1, "{what}: {held1} of {len1} mm held");
+        // The layer above is no worse.
+        let above = |c: &printonair::report::CheckReport| {
+            c.layers
+                .iter()
+                .filter(|l| l.z > z + 1e-6)
+                .map(|l| l.in_air_mm)
+                .fold(0.0, f64::max)
+        };
+        assert!(
+            above(&after) <= above(&before) + 0.5,
+            "{what}: layers above: {} mm in air, {} before",
+            above(&after),
+            above(&before)
+        );
+    }
+}
