@@ -552,7 +552,11 @@ mod tests {
         // the bridge skin inside would otherwise be strays with gaps between them.
         let w = 0.4;
         let mut paths = vec![
-            path(Role::ExternalPerimeter, w, &[[0.0, 20.0], [0.0, 0.0], [8.1, 0.0]]),
+            path(
+                Role::ExternalPerimeter,
+                w,
+                &[[0.0, 20.0], [0.0, 0.0], [8.1, 0.0]],
+            ),
             path(
                 Role::OverhangPerimeter,
                 w,
@@ -565,7 +569,11 @@ mod tests {
             paths.push(path(Role::BridgeInfill, w, &[[x, 0.4], [x, 19.6]]));
         }
         let a = printed_area(&layer(paths), &AreaOptions::default());
-        assert!((a.unsigned_area() - 50.4 * 20.4).abs() < 5.0, "{}", a.unsigned_area());
+        assert!(
+            (a.unsigned_area() - 50.4 * 20.4).abs() < 5.0,
+            "{}",
+            a.unsigned_area()
+        );
         assert!(a.0.iter().all(|p| p.interiors().is_empty()));
     }
 

@@ -298,12 +298,9 @@ pub fn cura_definitions() -> Option<PathBuf> {
             PathBuf::from("/usr/share/cura/resources/definitions"),
             repo().join("target/cura/usr/share/cura/resources/definitions"),
         ]);
-    for d in candidates {
-        if d.join("fdmprinter.def.json").is_file() {
-            return Some(d);
-        }
-    }
-    None
+    candidates
+        .into_iter()
+        .find(|d| d.join("fdmprinter.def.json").is_file())
 }
 
 /// CuraEngine and its definitions; skips with a note outside CI when either is missing.
