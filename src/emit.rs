@@ -154,30 +154,14 @@ pub fn rewrite_layer(
     replaceable.sort_unstable();
     replaceable.dedup();
 
-    // The slicer's bridge infill that reaches into a zone goes whole, anchors included: the
-    // anchors lie over the sparse infill below and would be left hanging there, while loop 1
-    // already ties the region to the wall below.
-    // Zone bounding boxes: most lines are nowhere near a zone.
+    // Zone bounding boxes: most lines are nowhere near a zone. Every strand that crosses a
+    // zone is cut at its edge: the parts outside (bridge infill anchored over the wall below,
+    // sparse infill beside the region) stay, so the layer's printed area outside the region
+    // is what the slicer made.
     let boxes: Vec<Option<geo::Rect<f64>>> = rewrites
         .iter()
         .map(|r| geo::BoundingRect::bounding_rect(&r.plan.zone))
         .collect();
-    let mut anchors: Vec<(u64, usize)> = Vec::new();
-    for p in layer
-        .paths
-        .iter()
-        .filter(|p| matches!(p.role, Role::BridgeInfill | Role::InternalBridge))
-    {
-        let bb = crate::geometry::points_box(&p.points);
-        if let Some(z) = rewrites.iter().zip(&boxes).position(|(r, b)| {
-            b.is_some_and(|b| bb.is_some_and(|bb| geo::Intersects::intersects(&b, &bb)))
-                && !clip_lines(std::slice::from_ref(&p.points), &r.plan.zone, true).is_empty()
-        }) {
-            anchors.extend(p.seg_line.iter().map(|l| (*l, z)));
-        }
-    }
-    anchors.sort_unstable();
-    anchors.dedup_by_key(|a| a.0);
     let nl = line_end(&layer.raw);
     let mut machine: Machine = start.clone();
     let mut out = Vec::with_capacity(layer.raw.len() + 64 * 1024);
@@ -219,31 +203,18 @@ pub fn rewrite_layer(
                         )
                     },
                 );
-                let whole = anchors
-                    .binary_search_by(|(l, _)| l.cmp(&number))
-                    .ok()
-                    .map(|k| anchors[k].1);
                 let hits: Vec<(usize, Vec<(f64, f64)>)> = rewrites
                     .iter()
                     .enumerate()
-                    .filter(|(i, _)| whole.is_none_or(|z| z == *i))
                     .filter(|(i, _)| {
-                        whole.is_some() || {
-                            boxes[*i].is_some_and(|b| {
-                                hi[0] >= b.min().x
-                                    && lo[0] <= b.max().x
-                                    && hi[1] >= b.min().y
-                                    && lo[1] <= b.max().y
-                            })
-                        }
+                        boxes[*i].is_some_and(|b| {
+                            hi[0] >= b.min().x
+                                && lo[0] <= b.max().x
+                                && hi[1] >= b.min().y
+                                && lo[1] <= b.max().y
+                        })
                     })
-                    .map(|(i, r)| {
-                        if whole.is_some() {
-                            (i, vec![(0.0, polyline_length(&pts))])
-                        } else {
-                            (i, inside_intervals(&pts, &r.plan.zone))
-                        }
-                    })
+                    .map(|(i, r)| (i, inside_intervals(&pts, &r.plan.zone)))
                     .filter(|(_, iv)| !iv.is_empty())
                     .collect();
                 if !hits.is_empty() {

@@ -671,3 +671,4 @@ mod tests {
         assert!((b - a - island).abs() < 0.05, "{b}");
     }
 }
+
