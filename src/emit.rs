@@ -162,6 +162,14 @@ pub fn rewrite_layer(
         .iter()
         .map(|r| geo::BoundingRect::bounding_rect(&r.plan.zone))
         .collect();
+    // The lines of external perimeters, where a gradual overhang's block goes.
+    let mut perimeter_lines: Vec<u64> = layer
+        .paths
+        .iter()
+        .filter(|p| matches!(p.role, Role::ExternalPerimeter | Role::OverhangPerimeter))
+        .flat_map(|p| p.seg_line.iter().copied())
+        .collect();
+    perimeter_lines.sort_unstable();
     let nl = line_end(&layer.raw);
     let mut machine: Machine = start.clone();
     let mut out = Vec::with_capacity(layer.raw.len() + 64 * 1024);
@@ -237,8 +245,9 @@ pub fn rewrite_layer(
             number += 1;
             continue;
         };
+        let on_perimeter = perimeter_lines.binary_search(&number).is_ok();
         for (i, _) in &hits {
-            if !done[*i] {
+            if !done[*i] && (on_perimeter || !rewrites[*i].plan.with_perimeter) {
                 done[*i] = true;
                 stats[*i].inserted_before_line = number;
                 resync(&mut out, nl, &before, &mut real, motion);
@@ -270,6 +279,23 @@ pub fn rewrite_layer(
     }
     // The layer ended inside a zone: put the nozzle where the file's last move ended.
     resync(&mut out, nl, &machine, &mut real, motion);
+    // A gradual overhang whose zone no external perimeter crossed goes at the layer's end.
+    for (i, r) in rewrites.iter().enumerate() {
+        if !done[i] {
+            stats[i].inserted_before_line = number;
+            emit_block(
+                &mut out,
+                nl,
+                &machine,
+                layer,
+                r,
+                motion,
+                settings,
+                &tags,
+                &mut stats[i],
+            );
+        }
+    }
     (out, stats)
 }
 
@@ -805,6 +831,9 @@ pub struct PoaPass<'a> {
     limits: crate::estimate::Estimator,
     /// Regions seen so far, for file-wide region numbers.
     next_id: usize,
+    /// The last rewritten layer's index and its area as rewritten, which the layer above it
+    /// is planned on.
+    rewritten_below: Option<(usize, MultiPolygon<f64>)>,
     /// What the pass did so far.
     pub report: ProcessReport,
 }
@@ -817,6 +846,7 @@ impl<'a> PoaPass<'a> {
             loop_width: config.external_perimeter_width(),
             limits: crate::estimate::Estimator::new(crate::estimate::Limits::from_config(config)),
             next_id: 0,
+            rewritten_below: None,
             report: ProcessReport::default(),
         }
     }
@@ -825,10 +855,11 @@ impl<'a> PoaPass<'a> {
     /// the others go to the report with the reason.
     fn choose<'r>(
         &mut self,
-        d: &'r crate::geometry::Detected,
+        d: &crate::geometry::Detected,
+        regions: &'r [crate::geometry::Region],
     ) -> Vec<(usize, &'r crate::geometry::Region)> {
         let mut chosen = Vec::new();
-        for r in &d.regions {
+        for r in regions {
             self.next_id += 1;
             let report = &mut self.report;
             report.regions_found += 1;
@@ -874,12 +905,16 @@ impl<'a> PoaPass<'a> {
             tolerance: self.opts.detect.tolerance_at(layer.height),
         };
         let settings = &self.opts.settings;
+        let below = match &self.rewritten_below {
+            Some((i, area)) if i + 1 == layer.index => area,
+            _ => &d.below,
+        };
         let plans: Vec<(usize, RegionKind, Plan)> = {
             use rayon::prelude::*;
             chosen
                 .par_iter()
                 .map(|(id, r)| {
-                    let plan = crate::poa::plan(r, &d.below, &d.area, widths, settings, start);
+                    let plan = crate::poa::plan(r, below, &d.area, widths, settings, start);
                     (*id, r.kind, plan)
                 })
                 .collect()
@@ -935,9 +970,34 @@ impl<'a> PoaPass<'a> {
 
 impl Pass for PoaPass<'_> {
     fn layer(&mut self, d: &crate::geometry::Detected) -> Result<Option<Vec<u8>>, Error> {
-        let chosen = self.choose(d);
+        // Above a rewritten layer the regions are found again on the layer as rewritten:
+        // a perimeter moved in there moves this layer's support.
+        let redone;
+        let regions = match &self.rewritten_below {
+            Some((i, below)) if i + 1 == d.layer.index => {
+                redone = crate::geometry::find_regions(below, &d.layer, &d.area, &self.opts.detect);
+                &redone[..]
+            }
+            _ => &d.regions[..],
+        };
+        let chosen = self.choose(d, regions);
         let rewrites = self.plan(d, &chosen);
         let layer = &d.layer;
+        self.rewritten_below = if rewrites.is_empty() {
+            None
+        } else {
+            let zones = rewrites.iter().fold(MultiPolygon(Vec::new()), |acc, r| {
+                crate::geometry::union(&acc, &r.plan.zone)
+            });
+            let strands = rewrites
+                .iter()
+                .flat_map(|r| r.plan.strands.iter())
+                .map(|s| (&s.points[..], s.width));
+            Some((
+                layer.index,
+                crate::geometry::rewritten_area(&d.area, &zones, strands),
+            ))
+        };
         let rewritten = if rewrites.is_empty() {
             None
         } else {

@@ -59,14 +59,19 @@ pub struct Strands(BTreeMap<i64, Vec<LineString<f64>>>);
 
 impl Strands {
     pub fn of<'a>(paths: impl IntoIterator<Item = &'a Path>) -> Strands {
+        Strands::of_lines(paths.into_iter().map(|p| (&p.points[..], p.width)))
+    }
+
+    /// Strands from polylines and their bead widths.
+    pub fn of_lines<'a>(lines: impl IntoIterator<Item = (&'a [[f64; 2]], f64)>) -> Strands {
         // One buffer call per width: geo buffers a MultiLineString at one distance.
         let mut by_width: BTreeMap<i64, Vec<LineString<f64>>> = BTreeMap::new();
-        for p in paths {
-            if p.points.len() < 2 || !(p.width > 0.0 && p.width < 50.0) {
+        for (points, width) in lines {
+            if points.len() < 2 || !(width > 0.0 && width < 50.0) {
                 continue;
             }
-            let mut pts: Vec<geo::Coord<f64>> = Vec::with_capacity(p.points.len());
-            for q in &p.points {
+            let mut pts: Vec<geo::Coord<f64>> = Vec::with_capacity(points.len());
+            for q in points {
                 let c = coord! {x: q[0], y: q[1]};
                 if pts.last().is_none_or(|l: &geo::Coord<f64>| {
                     (l.x - c.x).abs() > 1e-7 || (l.y - c.y).abs() > 1e-7
@@ -77,7 +82,7 @@ impl Strands {
             if pts.len() < 2 {
                 continue;
             }
-            let key = (p.width * 1000.0).round() as i64;
+            let key = (width * 1000.0).round() as i64;
             by_width.entry(key).or_default().push(LineString::new(pts));
         }
         Strands(by_width)
@@ -155,6 +160,18 @@ impl Strands {
                 .collect(),
         )
     }
+}
+
+/// What a layer prints after a rewrite: `area` without the rewritten `zones`, plus the
+/// footprint of the strands written there (polylines with their widths). The layer above is
+/// planned on this, not on the layer as sliced: a perimeter pulled in moves its support.
+pub fn rewritten_area<'a>(
+    area: &MultiPolygon<f64>,
+    zones: &MultiPolygon<f64>,
+    strands: impl IntoIterator<Item = (&'a [[f64; 2]], f64)>,
+) -> MultiPolygon<f64> {
+    let written = Strands::of_lines(strands).buffer();
+    BooleanOps::union(&BooleanOps::difference(area, zones), &written)
 }
 
 /// Union of the strands' footprints (centerline buffered by width / 2, round caps and joins).
@@ -671,4 +688,3 @@ mod tests {
         assert!((b - a - island).abs() < 0.05, "{b}");
     }
 }
-

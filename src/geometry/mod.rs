@@ -14,7 +14,7 @@ pub mod area;
 pub mod detect;
 pub mod regions;
 
-pub use area::{footprint, printed_area, AreaOptions};
+pub use area::{footprint, printed_area, rewritten_area, AreaOptions};
 pub use detect::{detect, read_ahead, Detected};
 pub use regions::{find_regions, DetectOptions, Region, RegionKind, RoleExtrusion, Tolerance};
 

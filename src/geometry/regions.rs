@@ -9,9 +9,11 @@
 //!
 //! The sliver rule: a region survives when a disc of diameter `min_width` fits in it (a
 //! morphological opening by `min_width / 2` keeps something) and what survives covers at
-//! least `min_area`. With the defaults (one external perimeter width, 1 mm2) a slope of 70
-//! degrees at 0.2 mm layers (0.55 mm of overhang per layer, 0.33 mm beyond the tolerance) gives
-//! no region: the slicer's own overhang perimeters print it.
+//! least `min_area`. The defaults (a tenth of the external perimeter width, 1 mm2) keep the
+//! thin rings of gradual overhangs: wherever the slicer's perimeter would hang more than half
+//! its width (the tolerance) plus a tenth past the layer below. With 0.45 mm perimeters at
+//! 0.2 mm layers that is every slope flatter than 50 degrees from vertical (0.27 mm of
+//! overhang per layer); a ring of a sphere's underside or of a 60 degree arm is a region.
 
 use geo::{
     coord, Area, BooleanOps, BoundingRect, Contains, Line, LineString, MultiLineString,
@@ -37,11 +39,20 @@ pub enum Tolerance {
     Angle(f64),
 }
 
+/// Share of the external perimeter width that the narrowest region kept has by default.
+/// A region is what lies beyond the tolerance (half that width): a ring the slicer's
+/// perimeter hangs more than half its width past the layer below, plus this much.
+pub const GRADUAL_SHARE: f64 = 0.1;
+
+/// Regions reaching no farther than this many external perimeter widths from the layer below
+/// are overhangs, however their edges touch it: they are the rings of gradual overhangs.
+const THIN_REACH: f64 = 2.0;
+
 /// Settings of region detection.
 #[derive(Debug, Clone)]
 pub struct DetectOptions {
     pub tolerance: Tolerance,
-    /// Narrowest region kept (mm); `None` means one external perimeter width.
+    /// Narrowest region kept (mm); `None` means a tenth of the external perimeter width ([`GRADUAL_SHARE`]).
     pub min_width: Option<f64>,
     /// Smallest region kept (mm2).
     pub min_area: f64,
@@ -71,8 +82,13 @@ impl DetectOptions {
         }
     }
 
+    /// Narrowest region kept: by default a tenth of the external perimeter width, so the
+    /// thin rings of gradual overhangs (each layer a little wider than the one below) are
+    /// kept while numeric slivers along walls are not.
     pub fn min_width(&self) -> f64 {
-        self.min_width.unwrap_or(self.external_width).max(0.0)
+        self.min_width
+            .unwrap_or(GRADUAL_SHARE * self.external_width)
+            .max(0.0)
     }
 }
 
@@ -201,7 +217,9 @@ fn describe(
     boxes: &[Option<Rect<f64>>],
     opts: &DetectOptions,
 ) -> Region {
-    let min_stretch = opts.min_width();
+    // Anchors shorter than a perimeter width are noise along the boundary, whatever the
+    // narrowest region kept.
+    let min_stretch = opts.min_width().max(opts.external_width);
     // Boundary samples can only fall in zone polygons whose box meets the region's.
     let anchor_zone = match polygon.bounding_rect() {
         Some(b) => near(anchor_zone, &b, 0.0),
@@ -214,9 +232,13 @@ fn describe(
         anchors += n;
         anchored_length += len;
     }
+    let reach = max_distance(&polygon, below);
     let kind = match anchors {
         0 => RegionKind::Floating,
         1 => RegionKind::Overhang,
+        // A thin ring or strip (a gradual overhang) touches the anchor zone all along, on
+        // both of its edges in places: nothing in it spans anything.
+        _ if reach <= THIN_REACH * opts.external_width => RegionKind::Overhang,
         _ => RegionKind::Bridge,
     };
     let (extrusions, object) = extrusions_inside(&polygon, layer, boxes);
@@ -226,7 +248,7 @@ fn describe(
         height: layer.height,
         kind,
         area: polygon.unsigned_area(),
-        max_distance: max_distance(&polygon, below),
+        max_distance: reach,
         anchored_length,
         anchors,
         object,
@@ -562,16 +584,20 @@ mod tests {
     }
 
     #[test]
-    fn slope_of_70_degrees_is_below_the_minimum_width() {
+    fn slope_of_70_degrees_is_a_thin_overhang() {
         let step = 0.2 * 70f64.to_radians().tan();
         let below = vec![rect(0.0, 0.0, 10.0, 20.0)];
         let here = vec![rect(0.0, 0.0, 10.0 + step, 20.0)];
-        assert!(regions(below.clone(), here.clone()).is_empty());
-        // With a smaller minimum width the sliver is reported, as a thin overhang.
-        let opts = DetectOptions {
-            min_width: Some(0.2),
+        // One perimeter width as the minimum width (the old default) drops it ...
+        let wide_only = DetectOptions {
+            min_width: Some(0.45),
             ..Default::default()
         };
+        assert!(
+            find_regions(&mp(below.clone()), &layer(), &mp(here.clone()), &wide_only).is_empty()
+        );
+        // ... the default keeps the gradual overhang's strip, as a thin overhang.
+        let opts = DetectOptions::default();
         let r = find_regions(&mp(below), &layer(), &mp(here), &opts);
         assert_eq!(r.len(), 1);
         assert!(

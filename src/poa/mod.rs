@@ -112,6 +112,10 @@ pub struct Plan {
     /// Replacement strands in print order.
     pub strands: Vec<Strand>,
     pub loops: usize,
+    /// A gradual overhang's plan (a perimeter and at most one loop): printed where the
+    /// slicer printed the external perimeter it replaces, after the layer's inner
+    /// perimeters, which hold it up as they held the slicer's.
+    pub with_perimeter: bool,
 }
 
 pub fn polyline_length(p: &[[f64; 2]]) -> f64 {
@@ -161,18 +165,70 @@ pub fn plan(
             zone,
             strands: Vec::new(),
             loops: 0,
+            with_perimeter: false,
         };
     }
-
-    // The moved external perimeter: the outline pulled in by half its width plus the inset,
-    // convex corners rounded by half a width.
-    let round = we / 2.0;
-    let perimeter_area = offset(&offset(&area_loc, -(we / 2.0 + inset + round)), round);
-    let perimeter = clip_lines(&rings(&perimeter_area), &zone, true);
 
     // Loops stay inside the contour; contour and perimeter overlap like loops do.
     let contour_at = we / 2.0 + inset + (we + w) / 2.0 - overlap * w;
     let inner = intersection(&zone, &offset(&area_loc, -contour_at));
+    // A thin ring of a gradual overhang (each layer a little wider than the one below) has
+    // no room for a contour and loops of full width: the perimeter stays where the slicer put
+    // it (less the inset, and at most an eighth of a width more: the layer above was sliced
+    // on this outline), and where it would hang a quarter width or more beyond loop 1's
+    // place, one loop of half width is laid there first, biting into the layer below, so
+    // that the perimeter leans on it.
+    let thin = opening(&inner, w / 4.0).unsigned_area() <= 0.0;
+
+    // The moved external perimeter: the outline pulled in by half its width plus the inset,
+    // convex corners rounded by half a width.
+    let round = we / 2.0;
+    let mut perimeter_area = offset(&offset(&area_loc, -(we / 2.0 + inset + round)), round);
+    let front = offset(&below_loc, step - w / 2.0);
+    if thin {
+        // Where the perimeter is within an eighth of a width of biting like loop 1, it is
+        // moved there: a marginal slope (60 degrees at 0.2 mm) then rests on the layer below
+        // instead of hanging a tenth of a millimetre past it.
+        let biting = intersection(&perimeter_area, &front);
+        let limit = offset(&area_loc, -(we / 2.0 + inset + w / 8.0));
+        perimeter_area = union(&biting, &limit);
+    }
+    let perimeter = clip_lines(&rings(&perimeter_area), &zone, true);
+    if thin {
+        let room = intersection(&zone, &offset(&perimeter_area, -w / 4.0));
+        let mut at = start;
+        let loop1: Vec<Polyline> = clip_lines(&rings(&front), &room, true)
+            .into_iter()
+            .filter(|p| polyline_length(p) >= w)
+            .collect();
+        let mut strands: Vec<Strand> = order(loop1, &mut at)
+            .into_iter()
+            .map(|p| Strand {
+                kind: StrandKind::Loop,
+                loop_index: 1,
+                points: p,
+                width: w / 2.0,
+            })
+            .collect();
+        let loops = usize::from(!strands.is_empty());
+        let perimeter: Vec<Polyline> = perimeter
+            .into_iter()
+            .filter(|p| polyline_length(p) >= we)
+            .collect();
+        strands.extend(order(perimeter, &mut at).into_iter().map(|p| Strand {
+            kind: StrandKind::Perimeter,
+            loop_index: 0,
+            points: p,
+            width: we,
+        }));
+        return Plan {
+            zone,
+            strands,
+            loops,
+            with_perimeter: true,
+        };
+    }
+
     let near_below = offset(&below_loc, w / 2.0);
     let contour = clip_lines(&rings(&inner), &near_below, false);
 
@@ -249,6 +305,7 @@ pub fn plan(
         zone,
         strands,
         loops: loops_count,
+        with_perimeter: false,
     }
 }
 
