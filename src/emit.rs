@@ -569,7 +569,10 @@ fn emit_block(
             w.move_to(first.points[0]);
             w.unretract(t, before.retracted.max(0.0));
         } else {
-            travel += w.travel(t, first.points[0], true);
+            // A short hop (a gradual overhang's block starts where the slicer's perimeter
+            // was) goes without retraction, as the file's own short travels do.
+            let d = dist(w.position(), first.points[0]);
+            travel += w.travel(t, first.points[0], d > t.short_travel);
         }
     }
     w.fan(settings.fan, false);
@@ -625,7 +628,8 @@ fn emit_block(
         w.set_feed(t.travel_speed);
         w.move_to(home);
     } else {
-        w.travel(t, home, true);
+        let d = dist(w.position(), home);
+        w.travel(t, home, d > t.short_travel);
     }
     time += t.travel_time(travel);
     if (w.position()[2] - before.position()[2]).abs() > 1e-9 {
@@ -975,7 +979,12 @@ impl Pass for PoaPass<'_> {
         let redone;
         let regions = match &self.rewritten_below {
             Some((i, below)) if i + 1 == d.layer.index => {
-                redone = crate::geometry::find_regions(below, &d.layer, &d.area, &self.opts.detect);
+                // The moved perimeters come in pieces: so do the regions they leave.
+                let opts = crate::geometry::DetectOptions {
+                    min_area: self.opts.detect.min_area.min(0.1),
+                    ..self.opts.detect.clone()
+                };
+                redone = crate::geometry::find_regions(below, &d.layer, &d.area, &opts);
                 &redone[..]
             }
             _ => &d.regions[..],
