@@ -17,6 +17,7 @@ mod frontend;
 mod golden;
 mod parts;
 mod properties;
+mod real_parts;
 mod regions;
 mod rewrite;
 mod safety;
