@@ -264,18 +264,16 @@ pub fn plan(
         loops.pop();
     }
 
-    let mut strands = Vec::new();
     let mut at = start;
-    for (i, pieces) in loops.into_iter().enumerate() {
-        for p in order(pieces, &mut at) {
-            strands.push(Strand {
-                kind: StrandKind::Loop,
-                loop_index: i + 1,
-                points: p,
-                width: w,
-            });
-        }
-    }
+    let mut strands: Vec<Strand> = order_loops(loops, step, &mut at)
+        .into_iter()
+        .map(|(i, p)| Strand {
+            kind: StrandKind::Loop,
+            loop_index: i + 1,
+            points: p,
+            width: w,
+        })
+        .collect();
     let loops_count = strands.iter().map(|s| s.loop_index).max().unwrap_or(0);
     let contour: Vec<Polyline> = contour
         .into_iter()
@@ -307,6 +305,70 @@ pub fn plan(
         loops: loops_count,
         with_perimeter: false,
     }
+}
+
+/// Orders the loops' pieces (loop `i` at index `i`) so that each piece rests on what is
+/// already printed and the nozzle moves little: the next piece is the nearest one whose
+/// supports are all printed, a support being any piece of the loop before whose box, grown
+/// by one and a half steps, meets its box. A region split in lobes (by a hole, or a narrow
+/// waist) so gets each lobe's loops one after the other, instead of crossing over at every
+/// loop. Returns (loop index, piece) in print order; updates `at` to the last end.
+fn order_loops(loops: Vec<Vec<Polyline>>, step: f64, at: &mut [f64; 2]) -> Vec<(usize, Polyline)> {
+    let mut pieces: Vec<(usize, Polyline, Option<geo::Rect<f64>>)> = Vec::new();
+    for (i, ps) in loops.into_iter().enumerate() {
+        for p in ps {
+            let b = crate::geometry::points_box(&p);
+            pieces.push((i, p, b));
+        }
+    }
+    let n = pieces.len();
+    let grow = 1.5 * step;
+    let meets = |a: &Option<geo::Rect<f64>>, b: &Option<geo::Rect<f64>>| match (a, b) {
+        (Some(a), Some(b)) => {
+            a.min().x - grow <= b.max().x
+                && b.min().x <= a.max().x + grow
+                && a.min().y - grow <= b.max().y
+                && b.min().y <= a.max().y + grow
+        }
+        _ => true,
+    };
+    // Supports of each piece: indices of pieces of the loop before that it may rest on.
+    let supports: Vec<Vec<usize>> = (0..n)
+        .map(|k| {
+            (0..n)
+                .filter(|&j| pieces[j].0 + 1 == pieces[k].0 && meets(&pieces[j].2, &pieces[k].2))
+                .collect()
+        })
+        .collect();
+    let mut done = vec![false; n];
+    let mut out = Vec::with_capacity(n);
+    for _ in 0..n {
+        let mut best: Option<(f64, usize)> = None;
+        for k in (0..n).filter(|&k| !done[k]) {
+            if !supports[k].iter().all(|&j| done[j]) {
+                continue;
+            }
+            let p = &pieces[k].1;
+            let d = if is_closed(p) {
+                p.iter()
+                    .map(|q| dist2(*q, *at))
+                    .fold(f64::INFINITY, f64::min)
+            } else {
+                dist2(p[0], *at).min(dist2(p[p.len() - 1], *at))
+            };
+            // Lower loops first on a tie, as the plain order would.
+            if best.is_none_or(|(bd, bk)| d < bd || (d == bd && pieces[k].0 < pieces[bk].0)) {
+                best = Some((d, k));
+            }
+        }
+        // Supports always form a chain down to loop 1, so some piece is always free.
+        let Some((_, k)) = best else { break };
+        done[k] = true;
+        let p = std::mem::take(&mut pieces[k].1);
+        let mut ordered = order(vec![p], at);
+        out.push((pieces[k].0, ordered.remove(0)));
+    }
+    out
 }
 
 fn dist2(a: [f64; 2], b: [f64; 2]) -> f64 {
@@ -577,6 +639,54 @@ mod tests {
         let below = mp(vec![rect(0.0, 0.0, 5.0, 5.0), rect(20.0, 0.0, 25.0, 5.0)]);
         let area = mp(vec![rect(0.0, 0.0, 10.0, 5.0), rect(20.0, 0.0, 28.0, 5.0)]);
         check("islands", below, area, default_overlap());
+    }
+
+    #[test]
+    fn a_shelf_with_a_hole_is_printed_lobe_by_lobe() {
+        // A 15 mm shelf off a wall with an 8 mm hole: the fronts split around the hole.
+        let hole: Vec<geo::Coord<f64>> = (0..=48)
+            .map(|i| {
+                let a = i as f64 / 48.0 * std::f64::consts::TAU;
+                geo::coord! {x: 18.0 + 4.0 * a.cos(), y: 15.0 + 4.0 * a.sin()}
+            })
+            .collect();
+        let shelf = difference(
+            &mp(vec![rect(0.0, 0.0, 25.0, 30.0)]),
+            &MultiPolygon::new(vec![geo::Polygon::new(geo::LineString::new(hole), vec![])]),
+        );
+        let below = mp(vec![rect(0.0, 0.0, 10.0, 30.0)]);
+        check("shelf", below.clone(), shelf.clone(), default_overlap());
+        let widths = Widths {
+            loop_width: W,
+            perimeter_width: W,
+            tolerance: W / 2.0,
+        };
+        let zone = difference(&shelf, &below);
+        let plan = super::plan(
+            &region(zone.0[0].clone(), &below),
+            &below,
+            &shelf,
+            widths,
+            &PoaSettings::default(),
+            [0.0, 0.0],
+        );
+        let loops: Vec<&Strand> = plan
+            .strands
+            .iter()
+            .filter(|s| s.kind == StrandKind::Loop)
+            .collect();
+        let length: f64 = loops.iter().map(|s| s.length()).sum();
+        let travel: f64 = loops
+            .windows(2)
+            .map(|w| {
+                let (a, b) = (w[0].points[w[0].points.len() - 1], w[1].points[0]);
+                dist2(a, b).sqrt()
+            })
+            .sum();
+        assert!(
+            travel <= 0.10 * length,
+            "travel {travel:.1} mm for {length:.1} mm of loops"
+        );
     }
 
     #[test]
