@@ -585,6 +585,11 @@ fn emit_block(
     }
     let mut width_tag = f64::NAN;
     let mut last_loop = 0;
+    // Each loop's length, for its cooling time.
+    let mut loop_lengths: std::collections::HashMap<usize, f64> = Default::default();
+    for s in plan.strands.iter().filter(|s| s.kind == StrandKind::Loop) {
+        *loop_lengths.entry(s.loop_index).or_default() += s.length();
+    }
     for (i, s) in plan.strands.iter().enumerate() {
         if i > 0 {
             let d = dist(w.position(), s.points[0]);
@@ -611,6 +616,11 @@ fn emit_block(
         }
         let speed = match s.kind {
             StrandKind::Perimeter => motion.perimeter_speed,
+            StrandKind::Loop => slowed_for_cooling(
+                motion.loop_speed,
+                loop_lengths.get(&s.loop_index).copied().unwrap_or(0.0),
+                settings.min_loop_time,
+            ),
             _ => motion.loop_speed,
         };
         w.set_feed(speed);
@@ -646,6 +656,19 @@ fn emit_block(
     w.line(";POA_END");
     stats.travel_mm += travel;
     stats.time_added_s += time;
+}
+
+/// Slowest speed poa slows a loop to for cooling: slower, the bead of a 0.4 mm nozzle no
+/// longer comes out even.
+const COOLING_FLOOR: MmPerS = MmPerS(5.0);
+
+/// The speed at which a loop of `length` mm takes at least `min_time` s, never above `speed`
+/// nor below [`COOLING_FLOOR`].
+fn slowed_for_cooling(speed: MmPerS, length: f64, min_time: f64) -> MmPerS {
+    if min_time <= 0.0 || length <= 0.0 || length / speed.0 >= min_time {
+        return speed;
+    }
+    MmPerS((length / min_time).max(COOLING_FLOOR.0).min(speed.0))
 }
 
 fn dist(a: [f64; 3], b: [f64; 2]) -> f64 {
@@ -1245,6 +1268,15 @@ fn footer_line(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn short_loops_are_slowed_to_their_cooling_time_within_limits() {
+        let v = MmPerS(25.0);
+        assert_eq!(slowed_for_cooling(v, 50.0, 1.0), v);
+        assert_eq!(slowed_for_cooling(v, 10.0, 1.0), MmPerS(10.0));
+        assert_eq!(slowed_for_cooling(v, 2.0, 1.0), COOLING_FLOOR);
+        assert_eq!(slowed_for_cooling(v, 10.0, 0.0), v);
+    }
 
     #[test]
     fn footer_statistics_follow_the_rewrite() {

@@ -50,6 +50,7 @@ pub const SPECS: &[Spec] = &[
     Spec { key: "perimeter_speed", kind: Kind::Auto { min: 0.5, max: 500.0 }, default: "auto", unit: "mm/s", help: "speed of the region's outer perimeter (auto: loop speed)" },
     Spec { key: "fan", kind: Kind::Number { min: 0.0, max: 100.0 }, default: "100", unit: "%", help: "part-cooling fan during loops" },
     Spec { key: "dwell", kind: Kind::Number { min: 0.0, max: 60.0 }, default: "0", unit: "s", help: "pause after each loop" },
+    Spec { key: "min_loop_time", kind: Kind::Number { min: 0.0, max: 60.0 }, default: "0.5", unit: "s", help: "shortest time a loop takes: shorter loops (near a region's tip) are slowed, down to 5 mm/s, so each sets before the next leans on it" },
     Spec { key: "flow_factor", kind: Kind::Number { min: 0.5, max: 2.0 }, default: "1.0", unit: "", help: "extrusion multiplier for poa's strands" },
     Spec { key: "perimeter_inset", kind: Kind::Number { min: 0.0, max: 2.0 }, default: "0.05", unit: "mm", help: "how far the region's outer perimeter is pulled inward" },
     Spec { key: "temperature_offset", kind: Kind::Number { min: -50.0, max: 50.0 }, default: "0", unit: "C", help: "nozzle temperature change while printing loops" },
@@ -443,6 +444,7 @@ impl Effective {
             // The table states percent; the planner and writer take a share.
             fan: self.required("fan") / 100.0,
             dwell: self.required("dwell"),
+            min_loop_time: self.required("min_loop_time"),
             flow_factor: self.required("flow_factor"),
             perimeter_inset: self.required("perimeter_inset"),
             temperature_offset: self.required("temperature_offset"),

@@ -48,6 +48,8 @@ pub struct PoaSettings {
     pub fan: f64,
     /// Pause after each loop, seconds.
     pub dwell: f64,
+    /// Shortest time a loop takes, seconds (shorter loops are slowed).
+    pub min_loop_time: f64,
     /// Multiplier on the flow-model extrusion of every strand poa writes.
     pub flow_factor: f64,
     /// How far the region's external perimeter is pulled inward.
