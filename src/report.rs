@@ -304,6 +304,53 @@ pub struct AnalyzeReport {
     pub summary: AnalyzeSummary,
     pub regions: Vec<RegionReport>,
     pub diagnostics: Vec<DiagnosticEntry>,
+    /// Set when poa already rewrote the file: what the deposition check still finds in air.
+    /// The regions then are the areas poa's loops print, not material over air.
+    pub rewritten_by_poa: Option<StillUnsupported>,
+}
+
+/// What the deposition check finds in air in a file poa rewrote.
+#[derive(Debug, Clone, Serialize)]
+pub struct StillUnsupported {
+    pub in_air_mm: f64,
+    pub longest_in_air_mm: f64,
+    /// Layer number of the longest in-air run, if any.
+    pub longest_in_air_layer: Option<usize>,
+    /// Layers with more than 1 mm in air.
+    pub layers_in_air: usize,
+}
+
+/// If `path` holds poa's header line (its first MiB of text), runs the deposition check on
+/// it; `None` for a file poa did not rewrite.
+pub fn still_unsupported(path: &std::path::Path) -> crate::error::Result<Option<StillUnsupported>> {
+    use std::io::Read;
+    let read_err = |source| crate::error::Error::Read {
+        path: path.to_path_buf(),
+        source,
+    };
+    let mut head = Vec::new();
+    crate::input::open(path)?
+        .reader
+        .take(1 << 20)
+        .read_to_end(&mut head)
+        .map_err(read_err)?;
+    if !crate::emit::already_processed(&head) {
+        return Ok(None);
+    }
+    let opened = crate::input::open(path)?;
+    let c = check(
+        opened.reader,
+        opened.config,
+        &CheckOptions::default(),
+        &path.display().to_string(),
+    )
+    .map_err(read_err)?;
+    Ok(Some(StillUnsupported {
+        in_air_mm: c.in_air_mm,
+        longest_in_air_mm: c.longest_in_air_mm,
+        longest_in_air_layer: c.longest_in_air_at.map(|(l, _, _)| l),
+        layers_in_air: c.layers.iter().filter(|l| l.in_air_mm > 1.0).count(),
+    }))
 }
 
 /// The detection options a file's own settings call for.
@@ -411,6 +458,7 @@ pub fn analyze<R: BufRead + Send>(
         summary,
         regions: reports,
         diagnostics: diagnostics(&reader.diagnostics()),
+        rewritten_by_poa: None,
     })
 }
 
@@ -429,14 +477,36 @@ impl fmt::Display for AnalyzeReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let s = &self.summary;
         writeln!(f, "{} ({}, {} layers)", self.file, self.slicer, self.layers)?;
+        if let Some(u) = &self.rewritten_by_poa {
+            writeln!(
+                f,
+                "  already rewritten by poa: the regions below are where its loops print"
+            )?;
+            match u.longest_in_air_layer {
+                Some(l) if u.in_air_mm > 0.0 => writeln!(
+                    f,
+                    "  still in air (deposition check): {:.1} mm on {} layer{} over 1 mm, longest run {:.1} mm on layer {l}; `poa check` shows where",
+                    u.in_air_mm,
+                    u.layers_in_air,
+                    plural(u.layers_in_air),
+                    u.longest_in_air_mm
+                )?,
+                _ => writeln!(f, "  still in air (deposition check): nothing")?,
+            }
+        }
         if s.regions == 0 {
             writeln!(f, "  no region prints over air")?;
         } else {
             writeln!(
                 f,
-                "  {} region{} over air on {} layer{}: {} overhang, {} bridge, {} floating",
+                "  {} region{} {} on {} layer{}: {} overhang, {} bridge, {} floating",
                 s.regions,
                 plural(s.regions),
+                if self.rewritten_by_poa.is_some() {
+                    "rewritten"
+                } else {
+                    "over air"
+                },
                 s.layers_with_regions,
                 plural(s.layers_with_regions),
                 s.overhangs,
@@ -448,11 +518,13 @@ impl fmt::Display for AnalyzeReport {
             } else {
                 0.0
             };
-            writeln!(
-                f,
-                "  over air: {:.0} mm of extrusion ({share:.1} % of the print), {:.1} mm of filament",
-                s.over_air_length_mm, s.over_air_filament_mm
-            )?;
+            if self.rewritten_by_poa.is_none() {
+                writeln!(
+                    f,
+                    "  over air: {:.0} mm of extrusion ({share:.1} % of the print), {:.1} mm of filament",
+                    s.over_air_length_mm, s.over_air_filament_mm
+                )?;
+            }
             writeln!(f)?;
             writeln!(
                 f,

@@ -310,3 +310,29 @@ fn help_config_and_profiles_agree_with_the_settings_table() {
     );
     assert!(config.contains("tolerance 0.225 mm auto:"), "{config}");
 }
+
+#[test]
+fn analyze_of_a_rewritten_file_says_so_and_reports_what_is_still_in_air() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("done.gcode");
+    let src = sample("rect_overhang_prusa_abs.gcode");
+    let o = poa(&[
+        "process",
+        src.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success());
+    let text = String::from_utf8(poa(&["analyze", out.to_str().unwrap()]).stdout).unwrap();
+    assert!(text.contains("already rewritten by poa"), "{text}");
+    assert!(text.contains("still in air (deposition check)"), "{text}");
+    assert!(!text.contains("over air"), "{text}");
+    let json = poa(&["analyze", "--json", out.to_str().unwrap()]);
+    let v: serde_json::Value = serde_json::from_slice(&json.stdout).unwrap();
+    let in_air = v["rewritten_by_poa"]["in_air_mm"].as_f64().unwrap();
+    assert!(in_air < 5.0, "{in_air}");
+    // The slicer's file: no such note.
+    let orig = poa(&["analyze", "--json", src.to_str().unwrap()]);
+    let v: serde_json::Value = serde_json::from_slice(&orig.stdout).unwrap();
+    assert!(v["rewritten_by_poa"].is_null());
+}

@@ -69,8 +69,9 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             let opened = input::open(&file)?;
             let opts = detect.options(&opened.config)?;
             let name = file.display().to_string();
-            let rep = report::analyze(opened.reader, opened.config, &opts, &name)
+            let mut rep = report::analyze(opened.reader, opened.config, &opts, &name)
                 .map_err(read_err(&file))?;
+            rep.rewritten_by_poa = report::still_unsupported(&file)?;
             emit(&rep, json)?;
             Ok(ExitCode::SUCCESS)
         }
