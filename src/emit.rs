@@ -1015,7 +1015,10 @@ impl Pass for PoaPass<'_> {
         let chosen = self.choose(d, regions);
         let rewrites = self.plan(d, &chosen);
         let layer = &d.layer;
-        self.rewritten_below = if rewrites.is_empty() {
+        // Only a gradual overhang's plan moves the outline the layer above stands on (a wide
+        // region's loops fill its zone): the layer as rewritten is made only then, since
+        // buffering every loop of a big region costs as much as the region search.
+        self.rewritten_below = if !rewrites.iter().any(|r| r.plan.with_perimeter) {
             None
         } else {
             let zones = rewrites.iter().fold(MultiPolygon(Vec::new()), |acc, r| {
