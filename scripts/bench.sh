@@ -6,6 +6,10 @@
 #   SRC=sample-gcode/tri_overhang_prusa_rel.gcode FLAT_LAYERS=20 bash scripts/bench.sh
 #                                         # another part; FLAT_LAYERS: its layers below the
 #                                         # first overhang (no plate without regions if unset)
+#   REAL=12 bash scripts/bench.sh         # a real plate instead: PrusaSlicer re-slices 12
+#                                         # copies of PART (default tests/parts/circ_overhang)
+#                                         # at LAYER mm (default 0.1), so no two copies share
+#                                         # a footprint as tiled copies do
 #
 # Two plates are made from sample-gcode/rect_overhang_prusa_rel.gcode: its layers repeated with
 # every copy shifted in X/Y (a plate of many parts printed layer by layer) until the file
@@ -38,6 +42,21 @@ run() {
 print(f'{sys.argv[4]:<14} {s:7.2f} s {b/1048576/max(s,1e-3):8.1f} MB/s  peak RSS {r/1024:6.1f} MB')" \
         "$bytes" "$secs" "$rss_kb" "$label"
 }
+if [ -n "${REAL:-}" ]; then
+    part=${PART:-tests/parts/circ_overhang.stl}
+    layer=${LAYER:-0.1}
+    plate=bench-data/real_$(basename "$part" .stl)_x${REAL}_${layer}.gcode
+    [ -f "$plate" ] || prusa-slicer --load sample-gcode/config/prusaslicer-mk3s-pla.ini \
+        --duplicate "$REAL" --layer-height "$layer" --export-gcode -o "$plate" "$part" >/dev/null
+    echo "== $plate ($(( $(stat -c %s "$plate") / 1024 / 1024 )) MB, real plate of $REAL copies)"
+    run "$plate" "cp" cp "$plate" bench-data/copy.gcode
+    run "$plate" "poa info" target/release/poa info "$plate"
+    run "$plate" "poa analyze" target/release/poa analyze "$plate"
+    run "$plate" "poa process" target/release/poa process "$plate" -o bench-data/out.gcode
+    run "$plate" "poa check" target/release/poa check "$plate"
+    rm -f bench-data/copy.gcode bench-data/out.gcode
+    exit 0
+fi
 kinds=regions
 [ -n "$flat_layers" ] && kinds="regions no-regions"
 for kind in $kinds; do
