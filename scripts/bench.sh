@@ -42,6 +42,15 @@ run() {
 print(f'{sys.argv[4]:<14} {s:7.2f} s {b/1048576/max(s,1e-3):8.1f} MB/s  peak RSS {r/1024:6.1f} MB')" \
         "$bytes" "$secs" "$rss_kb" "$label"
 }
+bench_all() {
+    local plate=$1
+    run "$plate" "cp" cp "$plate" bench-data/copy.gcode
+    run "$plate" "poa info" target/release/poa info "$plate"
+    run "$plate" "poa analyze" target/release/poa analyze "$plate"
+    run "$plate" "poa process" target/release/poa process "$plate" -o bench-data/out.gcode
+    run "$plate" "poa check" target/release/poa check "$plate"
+    rm -f bench-data/copy.gcode bench-data/out.gcode
+}
 if [ -n "${REAL:-}" ]; then
     part=${PART:-tests/parts/circ_overhang.stl}
     layer=${LAYER:-0.1}
@@ -49,12 +58,7 @@ if [ -n "${REAL:-}" ]; then
     [ -f "$plate" ] || prusa-slicer --load sample-gcode/config/prusaslicer-mk3s-pla.ini \
         --duplicate "$REAL" --layer-height "$layer" --export-gcode -o "$plate" "$part" >/dev/null
     echo "== $plate ($(( $(stat -c %s "$plate") / 1024 / 1024 )) MB, real plate of $REAL copies)"
-    run "$plate" "cp" cp "$plate" bench-data/copy.gcode
-    run "$plate" "poa info" target/release/poa info "$plate"
-    run "$plate" "poa analyze" target/release/poa analyze "$plate"
-    run "$plate" "poa process" target/release/poa process "$plate" -o bench-data/out.gcode
-    run "$plate" "poa check" target/release/poa check "$plate"
-    rm -f bench-data/copy.gcode bench-data/out.gcode
+    bench_all "$plate"
     exit 0
 fi
 kinds=regions
@@ -69,10 +73,5 @@ for kind in $kinds; do
         fi
     fi
     echo "== $plate ($(( $(stat -c %s "$plate") / 1024 / 1024 )) MB, $kind)"
-    run "$plate" "cp" cp "$plate" bench-data/copy.gcode
-    run "$plate" "poa info" target/release/poa info "$plate"
-    run "$plate" "poa analyze" target/release/poa analyze "$plate"
-    run "$plate" "poa process" target/release/poa process "$plate" -o bench-data/out.gcode
-    run "$plate" "poa check" target/release/poa check "$plate"
-    rm -f bench-data/copy.gcode bench-data/out.gcode
+    bench_all "$plate"
 done

@@ -199,30 +199,15 @@ pub fn plan(
     if thin {
         let room = intersection(&zone, &offset(&perimeter_area, -w / 4.0));
         let mut at = start;
-        let loop1: Vec<Polyline> = clip_lines(&rings(&front), &room, true)
-            .into_iter()
-            .filter(|p| polyline_length(p) >= w)
-            .collect();
-        let mut strands: Vec<Strand> = order(loop1, &mut at)
-            .into_iter()
-            .map(|p| Strand {
-                kind: StrandKind::Loop,
-                loop_index: 1,
-                points: p,
-                width: w / 2.0,
-            })
-            .collect();
+        let loop1 = clip_lines(&rings(&front), &room, true);
+        let half = Shape {
+            kind: StrandKind::Loop,
+            loop_index: 1,
+            width: w / 2.0,
+        };
+        let mut strands = half.strands(loop1, w, &mut at);
         let loops = usize::from(!strands.is_empty());
-        let perimeter: Vec<Polyline> = perimeter
-            .into_iter()
-            .filter(|p| polyline_length(p) >= we)
-            .collect();
-        strands.extend(order(perimeter, &mut at).into_iter().map(|p| Strand {
-            kind: StrandKind::Perimeter,
-            loop_index: 0,
-            points: p,
-            width: we,
-        }));
+        strands.extend(Shape::perimeter(we).strands(perimeter, we, &mut at));
         return Plan {
             zone,
             strands,
@@ -277,30 +262,13 @@ pub fn plan(
         })
         .collect();
     let loops_count = strands.iter().map(|s| s.loop_index).max().unwrap_or(0);
-    let contour: Vec<Polyline> = contour
-        .into_iter()
-        .filter(|p| polyline_length(p) >= w)
-        .collect();
-    for p in order(contour, &mut at) {
-        strands.push(Strand {
-            kind: StrandKind::Contour,
-            loop_index: 0,
-            points: p,
-            width: w,
-        });
-    }
-    let perimeter: Vec<Polyline> = perimeter
-        .into_iter()
-        .filter(|p| polyline_length(p) >= we)
-        .collect();
-    for p in order(perimeter, &mut at) {
-        strands.push(Strand {
-            kind: StrandKind::Perimeter,
-            loop_index: 0,
-            points: p,
-            width: we,
-        });
-    }
+    let contour_shape = Shape {
+        kind: StrandKind::Contour,
+        loop_index: 0,
+        width: w,
+    };
+    strands.extend(contour_shape.strands(contour, w, &mut at));
+    strands.extend(Shape::perimeter(we).strands(perimeter, we, &mut at));
     Plan {
         zone,
         strands,
@@ -371,6 +339,40 @@ fn order_loops(loops: Vec<Vec<Polyline>>, step: f64, at: &mut [f64; 2]) -> Vec<(
         out.push((pieces[k].0, ordered.remove(0)));
     }
     out
+}
+
+/// What a set of pieces becomes: strands of one kind, loop number and width.
+struct Shape {
+    kind: StrandKind,
+    loop_index: usize,
+    width: f64,
+}
+
+impl Shape {
+    fn perimeter(width: f64) -> Shape {
+        Shape {
+            kind: StrandKind::Perimeter,
+            loop_index: 0,
+            width,
+        }
+    }
+
+    /// The pieces at least `min_len` long, ordered from `at` (see [`order`]), as strands.
+    fn strands(&self, pieces: Vec<Polyline>, min_len: f64, at: &mut [f64; 2]) -> Vec<Strand> {
+        let pieces = pieces
+            .into_iter()
+            .filter(|p| polyline_length(p) >= min_len)
+            .collect();
+        order(pieces, at)
+            .into_iter()
+            .map(|points| Strand {
+                kind: self.kind,
+                loop_index: self.loop_index,
+                points,
+                width: self.width,
+            })
+            .collect()
+    }
 }
 
 fn dist2(a: [f64; 2], b: [f64; 2]) -> f64 {
