@@ -353,11 +353,24 @@ fn inside_intervals(pts: &[[f64; 2]], zone: &MultiPolygon<f64>) -> Vec<(f64, f64
         })
         .collect();
     iv.sort_by(|a, b| a.0.total_cmp(&b.0));
+    // Pieces kept outside the zone shorter than this are slivers of the zone's edge: a bead
+    // too short to print (its E rounds to nothing) that costs a travel on each side.
+    let sliver = MIN_SEGMENT * 5.0;
     let mut merged: Vec<(f64, f64)> = Vec::new();
     for (a, b) in iv {
         match merged.last_mut() {
-            Some(last) if a <= last.1 + 1e-6 => last.1 = last.1.max(b),
+            Some(last) if a <= last.1 + sliver => last.1 = last.1.max(b),
             _ => merged.push((a, b)),
+        }
+    }
+    if let Some(first) = merged.first_mut() {
+        if first.0 < sliver {
+            first.0 = 0.0;
+        }
+    }
+    if let Some(last) = merged.last_mut() {
+        if total - last.1 < sliver {
+            last.1 = total;
         }
     }
     merged
@@ -544,7 +557,27 @@ fn emit_block(
     let mut w = Writer::new(out, nl, before);
     let t = &motion.travel;
     let home = [before.position()[0], before.position()[1]];
-    let plan = &rewrite.plan;
+    // Hops into and out of the block up to this long go without retraction and lift: the
+    // file's own short travels, and for a gradual overhang's block (which starts and ends
+    // beside the perimeter the slicer was printing, over the part) up to this layer's
+    // features' size, where a retraction and Z-hop each way would cost more than the strand.
+    let hop = if rewrite.plan.with_perimeter {
+        t.short_travel.max(THIN_HOP)
+    } else {
+        t.short_travel
+    };
+    // A gradual overhang's strands start where the nozzle is (where the slicer's perimeter
+    // did): no travel there and back for a block of one strand.
+    let reordered;
+    let plan = if rewrite.plan.with_perimeter {
+        reordered = Plan {
+            strands: crate::poa::reorder_from(&rewrite.plan.strands, home),
+            ..rewrite.plan.clone()
+        };
+        &reordered
+    } else {
+        &rewrite.plan
+    };
     w.line(&format!(
         ";POA_BEGIN region {} ({}): {} loops, {} strands",
         rewrite.id,
@@ -572,7 +605,7 @@ fn emit_block(
             // A short hop (a gradual overhang's block starts where the slicer's perimeter
             // was) goes without retraction, as the file's own short travels do.
             let d = dist(w.position(), first.points[0]);
-            travel += w.travel(t, first.points[0], d > t.short_travel);
+            travel += w.travel(t, first.points[0], d > hop);
         }
     }
     w.fan(settings.fan, false);
@@ -639,7 +672,7 @@ fn emit_block(
         w.move_to(home);
     } else {
         let d = dist(w.position(), home);
-        w.travel(t, home, d > t.short_travel);
+        w.travel(t, home, d > hop);
     }
     time += t.travel_time(travel);
     if (w.position()[2] - before.position()[2]).abs() > 1e-9 {
@@ -657,6 +690,9 @@ fn emit_block(
     stats.travel_mm += travel;
     stats.time_added_s += time;
 }
+
+/// Longest hop (mm) into or out of a gradual overhang's block made without retraction.
+const THIN_HOP: f64 = 10.0;
 
 /// Slowest speed poa slows a loop to for cooling: slower, the bead of a 0.4 mm nozzle no
 /// longer comes out even.

@@ -341,6 +341,30 @@ fn order_loops(loops: Vec<Vec<Polyline>>, step: f64, at: &mut [f64; 2]) -> Vec<(
     out
 }
 
+/// `strands` in the same groups (kind and loop) and group order, each group re-ordered from
+/// `at` (see [`order`]): a gradual overhang's block is planned before the writer knows
+/// where the nozzle will be, and starts there once it does.
+pub fn reorder_from(strands: &[Strand], mut at: [f64; 2]) -> Vec<Strand> {
+    let mut out: Vec<Strand> = Vec::with_capacity(strands.len());
+    let mut i = 0;
+    while i < strands.len() {
+        let (kind, index, width) = (strands[i].kind, strands[i].loop_index, strands[i].width);
+        let mut j = i;
+        while j < strands.len() && strands[j].kind == kind && strands[j].loop_index == index {
+            j += 1;
+        }
+        let pieces = strands[i..j].iter().map(|s| s.points.clone()).collect();
+        let shape = Shape {
+            kind,
+            loop_index: index,
+            width,
+        };
+        out.extend(shape.strands(pieces, 0.0, &mut at));
+        i = j;
+    }
+    out
+}
+
 /// What a set of pieces becomes: strands of one kind, loop number and width.
 struct Shape {
     kind: StrandKind,
