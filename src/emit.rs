@@ -920,6 +920,7 @@ impl<'a> PoaPass<'a> {
         &mut self,
         d: &crate::geometry::Detected,
         regions: &'r [crate::geometry::Region],
+        above_rewrite: bool,
     ) -> Vec<(usize, &'r crate::geometry::Region)> {
         let mut chosen = Vec::new();
         for r in regions {
@@ -929,7 +930,8 @@ impl<'a> PoaPass<'a> {
             let object = r
                 .object
                 .and_then(|o| report.objects.get(o as usize).cloned());
-            let why = if !self.opts.settings.rewrites(r.kind) {
+            // Above a rewrite, a "bridge" is the gap a moved perimeter left: rewritten too.
+            let why = if !self.opts.settings.rewrites(r.kind) && !above_rewrite {
                 match r.kind {
                     RegionKind::Bridge => "bridge (use --bridges poa to rewrite bridges)",
                     _ => "floating: nothing below to grow loops from",
@@ -1036,7 +1038,7 @@ impl Pass for PoaPass<'_> {
         // Above a rewritten layer the regions are found again on the layer as rewritten:
         // a perimeter moved in there moves this layer's support.
         let redone;
-        let regions = match &self.rewritten_below {
+        let (regions, above_rewrite) = match &self.rewritten_below {
             Some((i, below)) if i + 1 == d.layer.index => {
                 // The moved perimeters come in pieces: so do the regions they leave.
                 let opts = crate::geometry::DetectOptions {
@@ -1044,11 +1046,11 @@ impl Pass for PoaPass<'_> {
                     ..self.opts.detect.clone()
                 };
                 redone = crate::geometry::find_regions(below, &d.layer, &d.area, &opts);
-                &redone[..]
+                (&redone[..], true)
             }
-            _ => &d.regions[..],
+            _ => (&d.regions[..], false),
         };
-        let chosen = self.choose(d, regions);
+        let chosen = self.choose(d, regions, above_rewrite);
         let rewrites = self.plan(d, &chosen);
         let layer = &d.layer;
         // Only a gradual overhang's plan moves the outline the layer above stands on (a wide

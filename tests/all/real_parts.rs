@@ -19,8 +19,13 @@ fn check(d: &[u8]) -> CheckReport {
 }
 
 fn slices(name: &str) -> Vec<(String, Vec<u8>)> {
+    slices_with(name, &[])
+}
+
+/// PrusaSlicer with `args` on top of the samples' config, and Cura.
+fn slices_with(name: &str, args: &[&str]) -> Vec<(String, Vec<u8>)> {
     let mut v = Vec::new();
-    if let Some(d) = slice(name, &[]) {
+    if let Some(d) = slice(name, args) {
         v.push(("PrusaSlicer".to_string(), d));
     }
     if let Some(d) = slice_cura(
@@ -44,8 +49,12 @@ fn areas(d: &[u8]) -> Vec<MultiPolygon<f64>> {
 
 /// Rewrites `name` as sliced by each slicer and checks what every part must meet.
 fn judge(name: &str) -> Vec<(String, CheckReport, CheckReport)> {
+    judge_with(name, &[])
+}
+
+fn judge_with(name: &str, args: &[&str]) -> Vec<(String, CheckReport, CheckReport)> {
     let mut out = Vec::new();
-    for (slicer, data) in slices(name) {
+    for (slicer, data) in slices_with(name, args) {
         let what = format!("{name} by {slicer}");
         let (new, rep) = rewrite(&data, BridgeMode::Keep);
         let (before, after) = (check(&data), check(&new));
@@ -176,5 +185,23 @@ fn arms_at_60_degrees_bridge_less() {
             unsupported(&after),
             unsupported(&before)
         );
+    }
+}
+
+#[test]
+fn frustums_at_42_and_63_degrees_leave_no_layer_worse() {
+    // At 0.15 mm layers the 63 degree flare is a thin ring on every layer; the layer above
+    // the last rewritten one once stood on a perimeter moved in and hung 64 mm in air.
+    for (what, before, after) in judge_with("frustums", &["--layer-height", "0.15"]) {
+        for (b, a) in before.layers.iter().zip(&after.layers) {
+            assert!(
+                a.in_air_mm <= b.in_air_mm + 1.0,
+                "{what}: layer {} (Z {}) {:.1} mm in air, {:.1} before",
+                b.layer,
+                b.z,
+                a.in_air_mm,
+                b.in_air_mm
+            );
+        }
     }
 }
