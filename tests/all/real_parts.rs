@@ -18,10 +18,6 @@ fn check(d: &[u8]) -> CheckReport {
     printonair::report::check(d, SlicerConfig::parse(d), &CheckOptions::default(), "x").unwrap()
 }
 
-fn slices(name: &str) -> Vec<(String, Vec<u8>)> {
-    slices_with(name, &[])
-}
-
 /// PrusaSlicer with `args` on top of the samples' config, and Cura.
 fn slices_with(name: &str, args: &[&str]) -> Vec<(String, Vec<u8>)> {
     let mut v = Vec::new();
