@@ -318,14 +318,7 @@ fn order_loops(loops: Vec<Vec<Polyline>>, step: f64, at: &mut [f64; 2]) -> Vec<(
             if !supports[k].iter().all(|&j| done[j]) {
                 continue;
             }
-            let p = &pieces[k].1;
-            let d = if is_closed(p) {
-                p.iter()
-                    .map(|q| dist2(*q, *at))
-                    .fold(f64::INFINITY, f64::min)
-            } else {
-                dist2(p[0], *at).min(dist2(p[p.len() - 1], *at))
-            };
+            let d = start_distance2(&pieces[k].1, *at);
             // Lower loops first on a tie, as the plain order would.
             if best.is_none_or(|(bd, bk)| d < bd || (d == bd && pieces[k].0 < pieces[bk].0)) {
                 best = Some((d, k));
@@ -403,6 +396,18 @@ fn dist2(a: [f64; 2], b: [f64; 2]) -> f64 {
     (a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)
 }
 
+/// Squared distance from `at` to where `p` can start: its nearer end, or for a closed ring
+/// its nearest vertex.
+fn start_distance2(p: &Polyline, at: [f64; 2]) -> f64 {
+    if is_closed(p) {
+        p.iter()
+            .map(|q| dist2(*q, at))
+            .fold(f64::INFINITY, f64::min)
+    } else {
+        dist2(p[0], at).min(dist2(p[p.len() - 1], at))
+    }
+}
+
 /// Orders pieces greedily, each starting at its end (or, for a closed ring, its vertex)
 /// nearest to where the previous one ended. Updates `at` to the last end.
 fn order(mut pieces: Vec<Polyline>, at: &mut [f64; 2]) -> Vec<Polyline> {
@@ -410,13 +415,7 @@ fn order(mut pieces: Vec<Polyline>, at: &mut [f64; 2]) -> Vec<Polyline> {
     while !pieces.is_empty() {
         let mut best = (f64::INFINITY, 0usize);
         for (i, p) in pieces.iter().enumerate() {
-            let d = if is_closed(p) {
-                p.iter()
-                    .map(|q| dist2(*q, *at))
-                    .fold(f64::INFINITY, f64::min)
-            } else {
-                dist2(p[0], *at).min(dist2(p[p.len() - 1], *at))
-            };
+            let d = start_distance2(p, *at);
             if d < best.0 {
                 best = (d, i);
             }
