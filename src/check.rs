@@ -447,21 +447,7 @@ mod tests {
         }
     }
 
-    fn layer(index: usize, paths: Vec<Path>) -> Layer {
-        Layer {
-            kind: LayerKind::Layer,
-            index,
-            marker_number: None,
-            z: 0.2 * (index + 1) as f64,
-            height: 0.2,
-            paths,
-            first_line: 1,
-            last_line: 1,
-            raw: Vec::new(),
-            start: None,
-            objects: None,
-        }
-    }
+    use crate::layers::testing::layer;
 
     fn circle(r: f64) -> Vec<[f64; 2]> {
         (0..=360)

@@ -956,6 +956,7 @@ impl<'a> PoaPass<'a> {
     fn plan(
         &mut self,
         d: &crate::geometry::Detected,
+        area: &MultiPolygon<f64>,
         chosen: &[(usize, &crate::geometry::Region)],
     ) -> Vec<RegionRewrite> {
         let layer = &d.layer;
@@ -972,14 +973,15 @@ impl<'a> PoaPass<'a> {
         let settings = &self.opts.settings;
         let below = match &self.rewritten_below {
             Some((i, area)) if i + 1 == layer.index => area,
-            _ => &d.below,
+            // A layer with regions of its own always has the area below.
+            _ => d.below.as_ref().unwrap_or(&crate::geometry::NO_AREA),
         };
         let plans: Vec<(usize, RegionKind, Plan)> = {
             use rayon::prelude::*;
             chosen
                 .par_iter()
                 .map(|(id, r)| {
-                    let plan = crate::poa::plan(r, below, &d.area, widths, settings, start);
+                    let plan = crate::poa::plan(r, below, area, widths, settings, start);
                     (*id, r.kind, plan)
                 })
                 .collect()
@@ -1038,6 +1040,10 @@ impl Pass for PoaPass<'_> {
         // Above a rewritten layer the regions are found again on the layer as rewritten:
         // a perimeter moved in there moves this layer's support.
         let redone;
+        // Detection leaves out the area of a layer proven supported: made here only when
+        // it is needed (a rewrite below or here).
+        let own_area = std::cell::OnceCell::new();
+        let area = || own_area.get_or_init(|| d.area_or_compute(&self.opts.detect));
         let (regions, above_rewrite) = match &self.rewritten_below {
             Some((i, below)) if i + 1 == d.layer.index => {
                 // The moved perimeters come in pieces: so do the regions they leave.
@@ -1045,13 +1051,17 @@ impl Pass for PoaPass<'_> {
                     min_area: self.opts.detect.min_area.min(0.1),
                     ..self.opts.detect.clone()
                 };
-                redone = crate::geometry::find_regions(below, &d.layer, &d.area, &opts);
+                redone = crate::geometry::find_regions(below, &d.layer, area(), &opts);
                 (&redone[..], true)
             }
             _ => (&d.regions[..], false),
         };
         let chosen = self.choose(d, regions, above_rewrite);
-        let rewrites = self.plan(d, &chosen);
+        let rewrites = if chosen.is_empty() {
+            Vec::new()
+        } else {
+            self.plan(d, area(), &chosen)
+        };
         let layer = &d.layer;
         // Only a gradual overhang's plan moves the outline the layer above stands on (a wide
         // region's loops fill its zone): the layer as rewritten is made only then, since
@@ -1068,7 +1078,7 @@ impl Pass for PoaPass<'_> {
                 .map(|s| (&s.points[..], s.width));
             Some((
                 layer.index,
-                crate::geometry::rewritten_area(&d.area, &zones, strands),
+                crate::geometry::rewritten_area(area(), &zones, strands),
             ))
         };
         let rewritten = if rewrites.is_empty() {

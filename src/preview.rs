@@ -542,7 +542,12 @@ pub fn preview_layer<R: BufRead + Send>(
             config,
         },
     );
-    let result = geometry::detect(reader, opts, |d| {
+    // The drawn layer shows the area below even where the proof would not need it.
+    let exact = DetectOptions {
+        prove: false,
+        ..opts.clone()
+    };
+    let result = geometry::detect(reader, &exact, |d| {
         if d.layer.kind != LayerKind::Layer {
             return Ok(());
         }
@@ -556,7 +561,7 @@ pub fn preview_layer<R: BufRead + Send>(
             svg = Some(render(&Scene {
                 title,
                 layer: &d.layer,
-                below: &d.below,
+                below: d.below.as_ref().unwrap_or(&geometry::NO_AREA),
                 regions: &numbered,
                 samples: &[],
             }));
@@ -604,7 +609,7 @@ pub fn preview_regions<R: BufRead + Send>(
         let svg = render(&Scene {
             title,
             layer: &d.layer,
-            below: &d.below,
+            below: d.below.as_ref().unwrap_or(&geometry::NO_AREA),
             regions: &numbered,
             samples: &[],
         });

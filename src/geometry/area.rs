@@ -184,8 +184,13 @@ fn supports(role: Role) -> bool {
     role.is_part() || matches!(role, Role::Support | Role::SupportInterface)
 }
 
+/// Roles whose strands outline a layer told in walls and infill ([`outline_strands`]).
+pub(super) fn is_outline(role: Role) -> bool {
+    supports(role) && !interior(role)
+}
+
 /// Roles printed inside a part's perimeters: evidence of what the perimeters enclose.
-fn interior(role: Role) -> bool {
+pub(super) fn interior(role: Role) -> bool {
     matches!(
         role,
         Role::Infill
@@ -243,11 +248,7 @@ pub fn outline_strands(layer: &Layer) -> Strands {
         // Perimeters and the other strands outline the part; what infill fills is closed in
         // by hole filling instead of being buffered strand by strand (the costly part).
         Outline::Walls => {
-            let mut walls: Vec<&Path> = layer
-                .paths
-                .iter()
-                .filter(|p| supports(p.role) && !interior(p.role))
-                .collect();
+            let mut walls: Vec<&Path> = layer.paths.iter().filter(|p| is_outline(p.role)).collect();
             let joins = wall_joins(layer);
             walls.extend(joins.iter());
             Strands::of(walls)
@@ -276,7 +277,7 @@ fn is_wall(role: Role) -> bool {
 
 /// Short strands that join consecutive walls of one object across a gap up to
 /// [`WALL_JOIN`], for the outline only (nothing is printed there).
-fn wall_joins(layer: &Layer) -> Vec<Path> {
+pub(super) fn wall_joins(layer: &Layer) -> Vec<Path> {
     let mut joins = Vec::new();
     for w in layer.paths.windows(2) {
         let (a, b) = (&w[0], &w[1]);
@@ -510,22 +511,9 @@ fn close_holes(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::layers::{LayerKind, Role};
+    use crate::layers::Role;
 
-    fn path(role: Role, width: f64, pts: &[[f64; 2]]) -> Path {
-        Path {
-            role,
-            width,
-            height: 0.2,
-            z: 0.2,
-            object: None,
-            tool: 0,
-            points: pts.to_vec(),
-            seg_line: vec![1; pts.len() - 1],
-            seg_e: vec![0.01; pts.len() - 1],
-            feed: 1200.0,
-        }
-    }
+    use crate::layers::testing::path;
 
     fn square(x: f64, y: f64, side: f64) -> Vec<[f64; 2]> {
         vec![
@@ -595,19 +583,7 @@ mod tests {
     }
 
     fn layer(paths: Vec<Path>) -> Layer {
-        Layer {
-            kind: LayerKind::Layer,
-            index: 1,
-            marker_number: None,
-            z: 0.4,
-            height: 0.2,
-            paths,
-            first_line: 1,
-            last_line: 1,
-            raw: Vec::new(),
-            start: None,
-            objects: None,
-        }
+        crate::layers::testing::layer(1, paths)
     }
 
     fn square_loop(role: Role, x0: f64, y0: f64, x1: f64, y1: f64) -> Path {

@@ -3,9 +3,13 @@
 //! Input: an iterator of [`Layer`]s. Output: for each block in file order, a [`Detected`] with
 //! the layer, its printed area, the printed area below it and its unsupported regions, handed
 //! to a callback. Layers are processed in small batches whose geometry runs on all cores;
-//! only a batch, the area of the layer before it and the last footprint are held at once.
-//! Invariant: the areas are exactly those [`super::printed_area`] gives layer by layer; a
-//! footprint is shared only between layers whose outline strands are equal.
+//! only a batch, one layer held back, the area of the layer before them and the last
+//! footprint are held at once. Each layer first tries the cheap proof of
+//! [`super::proof`]; a layer's area is computed only when its proof or the next layer's
+//! fails, so a layer proven supported costs no polygon work.
+//! Invariants: the regions are exactly those of the exact path (proof off); the areas given
+//! are exactly those [`super::printed_area`] gives; a footprint is shared only between layers
+//! whose outline strands are equal.
 
 use std::io;
 
@@ -15,6 +19,7 @@ use rayon::prelude::*;
 use crate::layers::{Layer, LayerKind};
 
 use super::area::{area_from_footprint, outline_strands, Strands};
+use super::proof::{supported, Support};
 use super::{find_regions, DetectOptions, Region};
 
 /// Layers per parallel batch: enough to keep two cores busy, few enough to keep memory flat.
@@ -26,10 +31,12 @@ const BATCH_BYTES: usize = 6 << 20;
 /// One block of the file with what detection found.
 pub struct Detected {
     pub layer: Layer,
-    /// Printed area of this layer (empty for the preamble).
-    pub area: MultiPolygon<f64>,
-    /// Printed area of the layer below (empty for the first layer and the preamble).
-    pub below: MultiPolygon<f64>,
+    /// Printed area of this layer; `None` for the preamble, and for a layer proven supported
+    /// whose area the next layer did not need either ([`Detected::area_or_compute`]).
+    pub area: Option<MultiPolygon<f64>>,
+    /// Printed area of the layer below (empty for the first layer and the preamble); `None`
+    /// where the proof made it unneeded. Always there when `regions` are.
+    pub below: Option<MultiPolygon<f64>>,
     pub regions: Vec<Region>,
 }
 
@@ -38,9 +45,20 @@ impl Detected {
     pub fn plain(layer: Layer) -> Detected {
         Detected {
             layer,
-            area: MultiPolygon(Vec::new()),
-            below: MultiPolygon(Vec::new()),
+            area: None,
+            below: None,
             regions: Vec::new(),
+        }
+    }
+
+    /// This layer's printed area, computed now if detection did not need it.
+    pub fn area_or_compute(&self, opts: &DetectOptions) -> std::borrow::Cow<'_, MultiPolygon<f64>> {
+        match &self.area {
+            Some(a) => std::borrow::Cow::Borrowed(a),
+            None if self.layer.kind == LayerKind::Layer => {
+                std::borrow::Cow::Owned(super::printed_area(&self.layer, &opts.area))
+            }
+            None => std::borrow::Cow::Owned(MultiPolygon(Vec::new())),
         }
     }
 }
@@ -139,14 +157,28 @@ where
     })
 }
 
+/// A layer read but not yet handed on: whether its area is needed depends on the proof of
+/// the layer after it.
+struct Pending {
+    layer: Layer,
+    support: Support,
+    /// [`super::proof::supported`] held (or the layer cannot have regions at all).
+    proven: bool,
+}
+
 fn detect_batches<I, F>(mut layers: I, opts: &DetectOptions, mut sink: F) -> io::Result<()>
 where
     I: Iterator<Item = io::Result<Layer>>,
     F: FnMut(Detected) -> io::Result<()>,
 {
-    let mut below = MultiPolygon::new(Vec::new());
+    // Area and support of the last layer handed on (the one below the window's first).
+    // (Nothing below the first layer: an empty area, as for `find_regions`.)
+    let mut below: Option<MultiPolygon<f64>> = Some(MultiPolygon::new(Vec::new()));
+    let mut below_support: Option<Support> = None;
     let mut last: Option<(Strands, MultiPolygon<f64>)> = None;
-    let mut batch: Vec<Layer> = Vec::with_capacity(BATCH);
+    // The last layer read is held back until the next one's proof is known.
+    let mut window: Vec<Pending> = Vec::with_capacity(BATCH + 1);
+    let mut fresh: Vec<Layer> = Vec::with_capacity(BATCH);
     let mut batch_bytes = 0;
     let (mut lines, mut found) = (0u64, 0u64);
     loop {
@@ -154,17 +186,56 @@ where
         let end = next.is_none();
         if let Some(l) = next {
             batch_bytes += weight(&l);
-            batch.push(l);
+            fresh.push(l);
         }
-        if batch.len() < BATCH && batch_bytes < BATCH_BYTES && !end {
+        if fresh.len() < BATCH && batch_bytes < BATCH_BYTES && !end {
             continue;
         }
         batch_bytes = 0;
-        let areas = batch_areas(&batch, &mut last, opts);
+        let supports: Vec<Support> = fresh
+            .par_iter()
+            .map(|l| {
+                if opts.prove && l.kind == LayerKind::Layer {
+                    Support::new(l)
+                } else {
+                    Support::default()
+                }
+            })
+            .collect();
+        let first_new = window.len();
+        window.extend(
+            fresh
+                .drain(..)
+                .zip(supports)
+                .map(|(layer, support)| Pending {
+                    layer,
+                    support,
+                    proven: false,
+                }),
+        );
+        prove_window(&mut window, first_new, below_support.as_ref(), opts);
+        // Everything but the held-back layer is handed on (all of it at the end).
+        let take = if end { window.len() } else { window.len() - 1 };
+        let batch: Vec<Pending> = window.drain(..take).collect();
+        // A layer's area is needed when its own proof failed or the next layer's did.
+        let next_proven = |k: usize| -> bool {
+            batch[k + 1..]
+                .iter()
+                .chain(window.iter())
+                .find(|p| p.layer.kind == LayerKind::Layer)
+                .map_or(end, |p| p.proven)
+        };
+        let need: Vec<bool> = (0..batch.len())
+            .map(|k| {
+                batch[k].layer.kind == LayerKind::Layer && (!batch[k].proven || !next_proven(k))
+            })
+            .collect();
+        let layers_only: Vec<&Layer> = batch.iter().map(|p| &p.layer).collect();
+        let areas = batch_areas(&layers_only, &need, &mut last, opts);
         let mut belows = Vec::with_capacity(batch.len());
-        for (l, a) in batch.iter().zip(&areas) {
+        for (p, a) in batch.iter().zip(&areas) {
             belows.push(below.clone());
-            if l.kind == LayerKind::Layer {
+            if p.layer.kind == LayerKind::Layer {
                 below = a.clone();
             }
         }
@@ -172,25 +243,31 @@ where
             .par_iter()
             .zip(areas.par_iter())
             .zip(belows.par_iter())
-            .map(|((l, a), b)| {
+            .map(|((p, a), b)| {
+                let l = &p.layer;
                 // The first layer rests on the bed.
-                if l.kind == LayerKind::Layer && l.index > 0 {
-                    find_regions(b, l, a, opts)
-                } else {
-                    Vec::new()
+                if l.kind != LayerKind::Layer || l.index == 0 || p.proven {
+                    return Vec::new();
+                }
+                match (a, b) {
+                    (Some(a), Some(b)) => find_regions(b, l, a, opts),
+                    // Both are computed whenever the proof failed (see `need`).
+                    _ => unreachable!("area of an unproven layer or of the one below it"),
                 }
             })
             .collect();
         lines += batch
             .iter()
-            .map(|l| (l.last_line + 1).saturating_sub(l.first_line))
+            .map(|p| (p.layer.last_line + 1).saturating_sub(p.layer.first_line))
             .sum::<u64>();
         found += regions.iter().map(|r| r.len() as u64).sum::<u64>();
         check_region_density(found, lines)?;
-        for (((layer, area), below), regions) in batch.drain(..).zip(areas).zip(belows).zip(regions)
-        {
+        for (((p, area), below), regions) in batch.into_iter().zip(areas).zip(belows).zip(regions) {
+            if p.layer.kind == LayerKind::Layer {
+                below_support = Some(p.support);
+            }
             sink(Detected {
-                layer,
+                layer: p.layer,
                 area,
                 below,
                 regions,
@@ -199,6 +276,47 @@ where
         if end {
             return Ok(());
         }
+    }
+}
+
+/// Runs the proof for the window's layers from `from` on, each against the layer below it
+/// (in the window or, for the first, `before`).
+fn prove_window(
+    window: &mut [Pending],
+    from: usize,
+    before: Option<&Support>,
+    opts: &DetectOptions,
+) {
+    let mut below_of: Vec<Option<usize>> = Vec::with_capacity(window.len());
+    let mut prev: Option<usize> = None;
+    for p in window.iter().enumerate() {
+        below_of.push(prev);
+        if p.1.layer.kind == LayerKind::Layer {
+            prev = Some(p.0);
+        }
+    }
+    let proven: Vec<bool> = (from..window.len())
+        .into_par_iter()
+        .map(|k| {
+            let p = &window[k];
+            if p.layer.kind != LayerKind::Layer {
+                return false;
+            }
+            if p.layer.index == 0 {
+                return true;
+            }
+            if !opts.prove {
+                return false;
+            }
+            let below = match below_of[k] {
+                Some(j) => Some(&window[j].support),
+                None => before,
+            };
+            below.is_some_and(|b| supported(b, &p.layer, &p.support, opts))
+        })
+        .collect();
+    for (p, v) in window[from..].iter_mut().zip(proven) {
+        p.proven = v;
     }
 }
 
@@ -223,17 +341,20 @@ fn check_region_density(found: u64, lines: u64) -> io::Result<()> {
     Ok(())
 }
 
-/// Printed areas of a batch. A wall that rises straight repeats its outline strands exactly,
-/// layer after layer; their footprint (the costly buffer) is computed once and reused, the
-/// last one carried into the next batch.
+/// Printed areas of the layers of a batch that `need` them (`None` for the others). A wall
+/// that rises straight repeats its outline strands exactly, layer after layer; their
+/// footprint (the costly buffer) is computed once and reused, the last one carried into the
+/// next batch.
 fn batch_areas(
-    batch: &[Layer],
+    batch: &[&Layer],
+    need: &[bool],
     last: &mut Option<(Strands, MultiPolygon<f64>)>,
     opts: &DetectOptions,
-) -> Vec<MultiPolygon<f64>> {
+) -> Vec<Option<MultiPolygon<f64>>> {
     let strands: Vec<Option<Strands>> = batch
         .par_iter()
-        .map(|l| (l.kind == LayerKind::Layer).then(|| outline_strands(l)))
+        .zip(need.par_iter())
+        .map(|(l, &n)| n.then(|| outline_strands(l)))
         .collect();
     // Index of the layer whose footprint each layer shares (itself when fresh); usize::MAX
     // for the footprint carried in from the previous batch.
@@ -265,13 +386,10 @@ fn batch_areas(
             j => fresh[j].as_ref(),
         }
     };
-    let areas: Vec<MultiPolygon<f64>> = batch
+    let areas: Vec<Option<MultiPolygon<f64>>> = batch
         .par_iter()
         .enumerate()
-        .map(|(i, l)| match footprint_of(i) {
-            Some(fp) => area_from_footprint(l, fp.clone(), &opts.area),
-            None => MultiPolygon::new(Vec::new()),
-        })
+        .map(|(i, l)| footprint_of(i).map(|fp| area_from_footprint(l, fp.clone(), &opts.area)))
         .collect();
     if let Some(i) = source.iter().rposition(Option::is_some) {
         let fp = footprint_of(i).cloned();
@@ -288,17 +406,9 @@ mod tests {
 
     fn layer(index: usize, raw_bytes: usize) -> Layer {
         Layer {
-            kind: LayerKind::Layer,
-            index,
-            marker_number: None,
-            z: 0.2 * (index + 1) as f64,
-            height: 0.2,
-            paths: Vec::new(),
-            first_line: 1,
             last_line: 0,
             raw: vec![b';'; raw_bytes],
-            start: None,
-            objects: None,
+            ..crate::layers::testing::layer(index, Vec::new())
         }
     }
 

@@ -12,6 +12,7 @@
 
 pub mod area;
 pub mod detect;
+pub mod proof;
 pub mod regions;
 
 pub use area::{footprint, printed_area, rewritten_area, AreaOptions};
@@ -20,6 +21,9 @@ pub use regions::{find_regions, DetectOptions, Region, RegionKind, RoleExtrusion
 
 use geo::{MultiPolygon, Polygon};
 use geo_clipper::{Clipper, EndType, JoinType};
+
+/// The empty area (nothing printed).
+pub static NO_AREA: MultiPolygon<f64> = MultiPolygon(Vec::new());
 
 /// Clipper works on integers: coordinates are multiplied by this (0.1 um resolution).
 pub const CLIPPER_SCALE: f64 = 10_000.0;

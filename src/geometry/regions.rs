@@ -59,6 +59,9 @@ pub struct DetectOptions {
     /// External perimeter width of the file (mm), for the defaults above.
     pub external_width: f64,
     pub area: AreaOptions,
+    /// Try [`super::proof::supported`] before the polygon work (the results are the same
+    /// either way; off only to check that).
+    pub prove: bool,
 }
 
 impl Default for DetectOptions {
@@ -69,6 +72,7 @@ impl Default for DetectOptions {
             min_area: 1.0,
             external_width: 0.45,
             area: AreaOptions::default(),
+            prove: true,
         }
     }
 }

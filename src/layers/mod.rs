@@ -964,6 +964,45 @@ impl<R: BufRead> Iterator for LayerReader<R> {
     }
 }
 
+/// Literal layers and strands for unit tests across the crate.
+#[cfg(test)]
+pub(crate) mod testing {
+    use super::{Layer, LayerKind, Path, Role};
+
+    /// A strand `width` wide along `pts`, 0.2 mm high (segments from line 1, 0.01 mm of E).
+    pub fn path(role: Role, width: f64, pts: &[[f64; 2]]) -> Path {
+        Path {
+            role,
+            width,
+            height: 0.2,
+            z: 0.2,
+            object: None,
+            tool: 0,
+            points: pts.to_vec(),
+            seg_line: vec![1; pts.len().saturating_sub(1)],
+            seg_e: vec![0.01; pts.len().saturating_sub(1)],
+            feed: 1200.0,
+        }
+    }
+
+    /// Layer `index` (0-based), 0.2 mm layers, of `paths`.
+    pub fn layer(index: usize, paths: Vec<Path>) -> Layer {
+        Layer {
+            kind: LayerKind::Layer,
+            index,
+            marker_number: None,
+            z: 0.2 * (index + 1) as f64,
+            height: 0.2,
+            paths,
+            first_line: 1,
+            last_line: 1,
+            raw: Vec::new(),
+            start: None,
+            objects: None,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -16,6 +16,7 @@ mod faults;
 mod frontend;
 mod golden;
 mod parts;
+mod proof;
 mod properties;
 mod real_parts;
 mod regions;

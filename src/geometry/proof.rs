@@ -1,0 +1,704 @@
+//! A cheap proof that a layer prints nothing over air, tried before any polygon work.
+//!
+//! Input: a layer, and a [`Support`] of the layer below and of the layer itself (its strands'
+//! centerlines in a grid). Output: `true` only when [`super::find_regions`] is certain to find
+//! no region on the layer; `false` says nothing (the exact path then runs). It never changes a
+//! result: the areas the exact path would build are never needed when it holds.
+//!
+//! Why it is sound. A layer's printed area A is its outline footprint F (strands buffered by
+//! half their width, [`super::area`]) with some holes closed, plus the footprints of stray
+//! interior strands. The exact path finds a region only where A reaches beyond G, the area
+//! below grown by the tolerance. The proof shows A lies inside G:
+//! 1. F lies inside G: every outline strand of the layer, sampled every [`STEP`], lies within
+//!    `tolerance + (w_below - w) / 2` of an outline strand below, less the polygon error of
+//!    the arcs and half a sample step (so the whole bead between samples is covered).
+//! 2. No stray footprints: every interior strand (infill) starts, ends and has its middle point
+//!    on an outline strand of its own layer, so it lies inside the layer's area and adds
+//!    nothing.
+//! 3. G has no holes, so every hole the layer closes lies inside G with the outline around it:
+//!    below, every external perimeter is a closed loop, loops are far apart from each other
+//!    and from themselves (no two loops' boxes meet, no loop comes back within reach of itself
+//!    farther along), and an inner perimeter runs beside every external one within a gap no
+//!    hole of `min_hole` fits in, so no hole of the area below is walled by an external
+//!    perimeter (the only holes left open), and growing it closes none.
+//!
+//! Layers whose roles do not tell walls from infill, with support material or overhang
+//! perimeters, are left to the exact path. The residue: a notch in a wall narrower than the
+//! reach and bottle-shaped (closed at its mouth by the growth), of less than
+//! [`NOTCH_AREA`] mm2, could hide a region that small; regions that small are below the
+//! default minimum area.
+
+use crate::layers::{Layer, LayerKind, Path, Role};
+
+use super::area::{interior, is_outline, wall_joins};
+use super::regions::DetectOptions;
+
+/// Sample spacing along a strand (mm).
+pub const STEP: f64 = 0.1;
+/// Sample spacing along an external loop for its flanking perimeter (mm).
+const FLANK_STEP: f64 = 0.4;
+/// A flanking gap small enough not to look for a smaller one (mm).
+const FLANK_OK: f64 = 0.5;
+/// Grid cell (mm): larger than every reach queried, so a query reads at most 3 x 3 cells.
+const CELL: f64 = 1.0;
+/// Chord error of a footprint's arcs per mm of radius: geo's buffer draws a cap or join
+/// with chords of 0.35 rad, 1 - cos(0.175) of the radius inside the circle.
+const ARC_SHARE: f64 = 0.0153;
+/// Chord error of Clipper's round offsets (`ARC_TOLERANCE`) and its integer rounding.
+const OFFSET_SLACK: f64 = 0.006;
+/// Arc length (mm) along an external loop beyond which the loop must not come back near
+/// itself (a hairpin shorter than this closes no hole bigger than [`NOTCH_AREA`]).
+const LOOP_ARC: f64 = 4.0;
+/// The largest notch the loop rule can miss: one of perimeter `LOOP_ARC` plus its mouth.
+pub const NOTCH_AREA: f64 = 0.6;
+
+/// A segment of a strand's centerline with its half width.
+#[derive(Debug, Clone, Copy)]
+struct Seg {
+    a: [f64; 2],
+    b: [f64; 2],
+    half: f64,
+    role: Role,
+    /// Index of the external loop the segment belongs to, and its arc position (mm) there.
+    loop_at: Option<(u32, f64)>,
+}
+
+fn dist2(q: [f64; 2], s: &Seg) -> f64 {
+    let (dx, dy) = (s.b[0] - s.a[0], s.b[1] - s.a[1]);
+    let (px, py) = (q[0] - s.a[0], q[1] - s.a[1]);
+    let len2 = dx * dx + dy * dy;
+    let t = if len2 > 0.0 {
+        ((px * dx + py * dy) / len2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    let (ex, ey) = (px - t * dx, py - t * dy);
+    ex * ex + ey * ey
+}
+
+/// Segments bucketed by grid cell (a dense grid over their box, filled by counting): each
+/// segment is cut into pieces no longer than a cell and entered in the cells of each piece's
+/// box.
+#[derive(Debug, Default)]
+struct Grid {
+    segs: Vec<Seg>,
+    origin: [f64; 2],
+    cell: f64,
+    nx: usize,
+    ny: usize,
+    /// Cell `i` holds `items[start[i]..start[i + 1]]`.
+    start: Vec<u32>,
+    items: Vec<u32>,
+}
+
+/// Most cells a grid holds: a plate's box in 1 mm cells is far fewer; a hostile file's box
+/// gets bigger cells instead of more memory.
+const MAX_CELLS: f64 = 4.0e6;
+
+impl Grid {
+    fn new(segs: Vec<Seg>) -> Grid {
+        let mut b = [
+            f64::INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NEG_INFINITY,
+        ];
+        for s in &segs {
+            for q in [s.a, s.b] {
+                b = [
+                    b[0].min(q[0]),
+                    b[1].min(q[1]),
+                    b[2].max(q[0]),
+                    b[3].max(q[1]),
+                ];
+            }
+        }
+        if segs.is_empty() || !b.iter().all(|v| v.is_finite()) {
+            return Grid::default();
+        }
+        let (w, h) = (b[2] - b[0], b[3] - b[1]);
+        let cell = CELL.max(((w + CELL) * (h + CELL) / MAX_CELLS).sqrt());
+        let nx = (w / cell).floor() as usize + 1;
+        let ny = (h / cell).floor() as usize + 1;
+        let mut grid = Grid {
+            segs,
+            origin: [b[0], b[1]],
+            cell,
+            nx,
+            ny,
+            start: vec![0; nx * ny + 1],
+            items: Vec::new(),
+        };
+        // Two passes over the pieces: count per cell, then fill.
+        let mut cells: Vec<(u32, u32)> = Vec::new();
+        for (i, s) in grid.segs.iter().enumerate() {
+            let n = (seg_len(s) / cell).ceil().max(1.0) as usize;
+            let mut prev = (usize::MAX, usize::MAX, usize::MAX, usize::MAX);
+            for k in 0..n {
+                let p0 = lerp(s.a, s.b, k as f64 / n as f64);
+                let p1 = lerp(s.a, s.b, (k + 1) as f64 / n as f64);
+                let (x0, x1) = (grid.col(p0[0].min(p1[0])), grid.col(p0[0].max(p1[0])));
+                let (y0, y1) = (grid.row(p0[1].min(p1[1])), grid.row(p0[1].max(p1[1])));
+                for ix in x0..=x1 {
+                    for iy in y0..=y1 {
+                        // Consecutive pieces share cells: enter each once.
+                        if ix >= prev.0 && ix <= prev.1 && iy >= prev.2 && iy <= prev.3 {
+                            continue;
+                        }
+                        cells.push(((iy * nx + ix) as u32, i as u32));
+                    }
+                }
+                prev = (x0, x1, y0, y1);
+            }
+        }
+        for &(c, _) in &cells {
+            grid.start[c as usize + 1] += 1;
+        }
+        for i in 0..nx * ny {
+            grid.start[i + 1] += grid.start[i];
+        }
+        let mut fill = grid.start.clone();
+        grid.items = vec![0; cells.len()];
+        for &(c, i) in &cells {
+            let at = &mut fill[c as usize];
+            grid.items[*at as usize] = i;
+            *at += 1;
+        }
+        grid
+    }
+
+    fn col(&self, x: f64) -> usize {
+        (((x - self.origin[0]) / self.cell).floor().max(0.0) as usize).min(self.nx - 1)
+    }
+
+    fn row(&self, y: f64) -> usize {
+        (((y - self.origin[1]) / self.cell).floor().max(0.0) as usize).min(self.ny - 1)
+    }
+
+    /// Calls `f` with every segment entered in a cell within `reach` of `q`, until it
+    /// returns true; whether it did.
+    fn any_near(&self, q: [f64; 2], reach: f64, mut f: impl FnMut(&Seg) -> bool) -> bool {
+        if self.segs.is_empty() || !(q[0].is_finite() && q[1].is_finite()) {
+            return false;
+        }
+        let (x0, x1) = (self.col(q[0] - reach), self.col(q[0] + reach));
+        let (y0, y1) = (self.row(q[1] - reach), self.row(q[1] + reach));
+        for iy in y0..=y1 {
+            for ix in x0..=x1 {
+                let c = iy * self.nx + ix;
+                let (from, to) = (self.start[c] as usize, self.start[c + 1] as usize);
+                for &i in &self.items[from..to] {
+                    if f(&self.segs[i as usize]) {
+                        return true;
+                    }
+                }
+            }
+        }
+        false
+    }
+}
+
+fn lerp(a: [f64; 2], b: [f64; 2], t: f64) -> [f64; 2] {
+    [a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t]
+}
+
+/// Points every [`STEP`] or closer along a segment, both ends included.
+fn samples(a: [f64; 2], b: [f64; 2]) -> impl Iterator<Item = [f64; 2]> {
+    samples_every(a, b, STEP)
+}
+
+/// Points every `step` or closer along a segment, both ends included.
+fn samples_every(a: [f64; 2], b: [f64; 2], step: f64) -> impl Iterator<Item = [f64; 2]> {
+    let len = ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2)).sqrt();
+    let n = (len / step).ceil().max(1.0) as usize;
+    (0..=n).map(move |k| lerp(a, b, k as f64 / n as f64))
+}
+
+/// What a layer offers the proof: its outline strands in a grid, and what is known of its
+/// external loops.
+#[derive(Debug, Default)]
+pub struct Support {
+    /// The layer tells walls from infill and has no support material or overhang perimeter.
+    plain: bool,
+    grid: Grid,
+    /// Closest approach (mm) of an external loop to another loop or to itself farther along
+    /// than [`LOOP_ARC`], searched up to [`CELL`] (the value when none is nearer).
+    approach: f64,
+    /// Whether the external loops are closed, their boxes apart and each flanked by an inner
+    /// perimeter within the gap given (mm); `None` when they are not.
+    flank_gap: Option<f64>,
+    widest_external: f64,
+    /// Half the widest outline strand (mm).
+    widest_half: f64,
+    /// The external loops (closed polylines) with their boxes.
+    loops: Vec<([f64; 4], Vec<[f64; 2]>)>,
+}
+
+impl Support {
+    pub fn new(layer: &Layer) -> Support {
+        if layer.kind != LayerKind::Layer || !plain(layer) {
+            return Support::default();
+        }
+        let joins = wall_joins(layer);
+        let outline = layer
+            .paths
+            .iter()
+            .filter(|p| is_outline(p.role))
+            .map(|p| (p, false))
+            .chain(joins.iter().map(|p| (p, true)));
+        let mut segs = Vec::new();
+        let mut loops = 0u32;
+        let mut loops_ok = true;
+        let mut boxes: Vec<[f64; 4]> = Vec::new();
+        let mut loop_polys = Vec::new();
+        for (p, join) in outline {
+            let finite = p.points.iter().all(|q| {
+                q[0].abs() < 1e6 && q[1].abs() < 1e6 && q[0].is_finite() && q[1].is_finite()
+            });
+            if !(finite && p.width > 0.0 && p.width < 50.0) {
+                return Support::default();
+            }
+            let ext = p.role == Role::ExternalPerimeter && !join;
+            let loop_id = ext.then(|| {
+                let id = loops;
+                loops += 1;
+                if !closed(p) {
+                    loops_ok = false;
+                }
+                boxes.push(points_box(&p.points));
+                loop_polys.push((points_box(&p.points), p.points.clone()));
+                id
+            });
+            let mut s_at = 0.0;
+            for w in p.points.windows(2) {
+                let len = ((w[1][0] - w[0][0]).powi(2) + (w[1][1] - w[0][1]).powi(2)).sqrt();
+                segs.push(Seg {
+                    a: w[0],
+                    b: w[1],
+                    half: p.width / 2.0,
+                    role: p.role,
+                    loop_at: loop_id.map(|id| (id, s_at)),
+                });
+                s_at += len;
+            }
+        }
+        let widest_external = layer
+            .paths
+            .iter()
+            .filter(|p| p.role == Role::ExternalPerimeter)
+            .map(|p| p.width)
+            .fold(0.0, f64::max);
+        let widest_half = segs.iter().map(|s| s.half).fold(0.0, f64::max);
+        let grid = Grid::new(segs);
+        let mut sup = Support {
+            plain: true,
+            grid,
+            approach: f64::INFINITY,
+            flank_gap: None,
+            widest_external,
+            widest_half,
+            loops: loop_polys,
+        };
+        if loops_ok && boxes_apart(&mut boxes) {
+            let pick = |keep: &dyn Fn(&Seg) -> bool| {
+                Grid::new(sup.grid.segs.iter().filter(|s| keep(s)).copied().collect())
+            };
+            let inner = pick(&|s| s.role == Role::Perimeter);
+            let ext = pick(&|s| s.loop_at.is_some());
+            sup.flank_gap = Support::flanks(layer, &inner);
+            let loop_len: Vec<f64> = sup.loops.iter().map(|(_, pts)| polyline_len(pts)).collect();
+            sup.approach = Support::closest_approach(&ext, &loop_len);
+        }
+        sup
+    }
+
+    /// The widest gap between an external perimeter and the inner perimeter beside it, if
+    /// every piece of every external loop has one farther than the wall zone (`w_e / 2 + 0.1`
+    /// from its centerline, [`super::area`]'s walled test) reaches. Sampled every
+    /// [`FLANK_STEP`]: a point between samples is at most half a step from one, so the gap
+    /// grows and the reach shrinks by that much.
+    fn flanks(layer: &Layer, inner: &Grid) -> Option<f64> {
+        let mut widest = 0.0f64;
+        for p in layer
+            .paths
+            .iter()
+            .filter(|p| p.role == Role::ExternalPerimeter)
+        {
+            let he = p.width / 2.0;
+            let mut last: Option<Seg> = None;
+            for w in p.points.windows(2) {
+                for q in samples_every(w[0], w[1], FLANK_STEP) {
+                    let gap = |s: &Seg| {
+                        let d = dist2(q, s).sqrt();
+                        (d + s.half - FLANK_STEP / 2.0 > he + 0.11)
+                            .then(|| d - he - s.half + FLANK_STEP / 2.0)
+                    };
+                    // The perimeter beside the last sample usually serves this one too;
+                    // any gap under FLANK_OK will do (only the widest one is kept).
+                    let mut best = last.as_ref().and_then(gap).unwrap_or(f64::INFINITY);
+                    if best > FLANK_OK {
+                        inner.any_near(q, CELL, |s| {
+                            if let Some(g) = gap(s) {
+                                if g < best {
+                                    best = g;
+                                    last = Some(*s);
+                                }
+                            }
+                            false
+                        });
+                    }
+                    if !best.is_finite() {
+                        return None;
+                    }
+                    widest = widest.max(best);
+                }
+            }
+        }
+        Some(widest)
+    }
+
+    /// Whether `q` lies inside one of the external loops (even-odd rule on the polyline).
+    fn inside_loop(&self, q: [f64; 2]) -> bool {
+        self.loops.iter().any(|(b, pts)| {
+            if q[0] < b[0] || q[0] > b[2] || q[1] < b[1] || q[1] > b[3] {
+                return false;
+            }
+            let mut inside = false;
+            let n = pts.len();
+            for i in 0..n {
+                let (a, c) = (pts[i], pts[(i + 1) % n]);
+                if (a[1] > q[1]) != (c[1] > q[1]) {
+                    let x = a[0] + (q[1] - a[1]) / (c[1] - a[1]) * (c[0] - a[0]);
+                    if x > q[0] {
+                        inside = !inside;
+                    }
+                }
+            }
+            inside
+        })
+    }
+
+    /// See [`Support::approach`]: exact segment-to-segment distances between the external
+    /// loops' segments, up to [`CELL`].
+    fn closest_approach(ext: &Grid, loop_len: &[f64]) -> f64 {
+        let mut closest = CELL;
+        for s in &ext.segs {
+            let Some((id, at)) = s.loop_at else { continue };
+            let slen = seg_len(s);
+            let mid = lerp(s.a, s.b, 0.5);
+            ext.any_near(mid, slen / 2.0 + closest, |t| {
+                let Some((tid, tat)) = t.loop_at else {
+                    return false;
+                };
+                if tid == id {
+                    let total = loop_len.get(id as usize).copied().unwrap_or(0.0);
+                    if arc_gap(at, at + slen, tat, tat + seg_len(t), total) <= LOOP_ARC {
+                        return false;
+                    }
+                }
+                closest = closest.min(seg_dist(s, t));
+                false
+            });
+        }
+        closest
+    }
+}
+
+fn seg_len(s: &Seg) -> f64 {
+    ((s.b[0] - s.a[0]).powi(2) + (s.b[1] - s.a[1]).powi(2)).sqrt()
+}
+
+/// Arc distance between the intervals [a0, a1] and [b0, b1] of a loop of length `total`.
+fn arc_gap(a0: f64, a1: f64, b0: f64, b1: f64, total: f64) -> f64 {
+    if a1 >= b0 && b1 >= a0 {
+        return 0.0;
+    }
+    let d = if a1 < b0 { b0 - a1 } else { a0 - b1 };
+    let round = if a1 < b0 {
+        total - b1 + a0
+    } else {
+        total - a1 + b0
+    };
+    d.min(round.max(0.0))
+}
+
+/// Distance between two segments.
+fn seg_dist(s: &Seg, t: &Seg) -> f64 {
+    if segments_cross(s.a, s.b, t.a, t.b) {
+        return 0.0;
+    }
+    let as_seg = |a: [f64; 2], b: [f64; 2]| Seg { a, b, ..*s };
+    dist2(s.a, t)
+        .min(dist2(s.b, t))
+        .min(dist2(t.a, &as_seg(s.a, s.b)))
+        .min(dist2(t.b, &as_seg(s.a, s.b)))
+        .sqrt()
+}
+
+fn segments_cross(a: [f64; 2], b: [f64; 2], c: [f64; 2], d: [f64; 2]) -> bool {
+    let orient = |p: [f64; 2], q: [f64; 2], r: [f64; 2]| {
+        (q[0] - p[0]) * (r[1] - p[1]) - (q[1] - p[1]) * (r[0] - p[0])
+    };
+    let (d1, d2) = (orient(c, d, a), orient(c, d, b));
+    let (d3, d4) = (orient(a, b, c), orient(a, b, d));
+    ((d1 > 0.0) != (d2 > 0.0)) && ((d3 > 0.0) != (d4 > 0.0))
+}
+
+/// Whether the layer's roles are the kind the proof reasons about: walls told apart, no
+/// support material (its grids close holes of their own) and no overhang perimeters.
+fn plain(layer: &Layer) -> bool {
+    let mut external = false;
+    for p in &layer.paths {
+        match p.role {
+            Role::ExternalPerimeter => external = true,
+            Role::Support | Role::SupportInterface | Role::OverhangPerimeter => return false,
+            _ => {}
+        }
+    }
+    external
+}
+
+fn closed(p: &Path) -> bool {
+    match (p.points.first(), p.points.last()) {
+        (Some(a), Some(b)) if p.points.len() >= 4 => {
+            ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt() <= p.width
+        }
+        _ => false,
+    }
+}
+
+fn polyline_len(points: &[[f64; 2]]) -> f64 {
+    points
+        .windows(2)
+        .map(|w| ((w[1][0] - w[0][0]).powi(2) + (w[1][1] - w[0][1]).powi(2)).sqrt())
+        .sum()
+}
+
+fn points_box(points: &[[f64; 2]]) -> [f64; 4] {
+    points.iter().fold(
+        [
+            f64::INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NEG_INFINITY,
+        ],
+        |b, q| {
+            [
+                b[0].min(q[0]),
+                b[1].min(q[1]),
+                b[2].max(q[0]),
+                b[3].max(q[1]),
+            ]
+        },
+    )
+}
+
+/// Whether no two boxes meet (a loop inside another's box may be a hole of it).
+fn boxes_apart(boxes: &mut [[f64; 4]]) -> bool {
+    boxes.sort_unstable_by(|a, b| a[0].total_cmp(&b[0]));
+    for i in 0..boxes.len() {
+        for j in i + 1..boxes.len() {
+            if boxes[j][0] > boxes[i][2] {
+                break;
+            }
+            if boxes[j][1] <= boxes[i][3] && boxes[i][1] <= boxes[j][3] {
+                return false;
+            }
+        }
+    }
+    true
+}
+
+/// Whether `layer` is certain to have no region over the layer below (see the module doc).
+/// `below` and `here` are the [`Support`]s of the layer below and of `layer`.
+pub fn supported(below: &Support, layer: &Layer, here: &Support, opts: &DetectOptions) -> bool {
+    why_not(below, layer, here, opts).is_none()
+}
+
+/// `None` when [`supported`] holds, else the first condition that failed and where.
+pub fn why_not(
+    below: &Support,
+    layer: &Layer,
+    here: &Support,
+    opts: &DetectOptions,
+) -> Option<String> {
+    if !below.plain || !here.plain || layer.kind != LayerKind::Layer {
+        return Some("roles: walls not told apart, support or overhang perimeters".into());
+    }
+    // Numeric slivers of the booleans are dropped only by a minimum area and width.
+    if opts.min_area < 1e-3 || opts.min_width() < 1e-3 {
+        return Some("minimum area or width zero".into());
+    }
+    let tol = opts.tolerance_at(layer.height);
+    // 3. The area below has no holes, and growing it closes none.
+    let Some(gap) = below.flank_gap else {
+        return Some("below: external loops open, nested or not flanked".into());
+    };
+    if gap >= opts.area.min_hole - 0.02 {
+        return Some(format!(
+            "below: gap {gap:.3} mm beside an external perimeter"
+        ));
+    }
+    let reach = below.widest_external + 2.0 * tol + 0.05;
+    if reach >= CELL || below.approach <= reach {
+        return Some(format!("below: loops {:.3} mm apart", below.approach));
+    }
+    // 1. The outline lies within the tolerance of the outline below.
+    for s in &here.grid.segs {
+        let mut last: Option<Seg> = None;
+        for q in samples(s.a, s.b) {
+            let covers = |t: &Seg| {
+                let need = tol - OFFSET_SLACK - ARC_SHARE * t.half - STEP / 2.0 + t.half - s.half;
+                need > 0.0 && dist2(q, t) <= need * need
+            };
+            if last.as_ref().is_some_and(covers) {
+                continue;
+            }
+            let mut found = None;
+            below.grid.any_near(q, tol + below.widest_half, |t| {
+                let ok = covers(t);
+                if ok {
+                    found = Some(*t);
+                }
+                ok
+            });
+            match found {
+                Some(t) => last = Some(t),
+                None => {
+                    return Some(format!(
+                        "outline at {:.3},{:.3} off the outline below",
+                        q[0], q[1]
+                    ))
+                }
+            }
+        }
+    }
+    // 2. Every interior strand's first, middle and last points lie in the layer's area: on
+    // its outline, or inside one of its external loops, whose inside holes are all closed
+    // (the loops are flanked by inner perimeters, as 3. checks below).
+    let here_flanked = here
+        .flank_gap
+        .is_some_and(|g| g < opts.area.min_hole - 0.02);
+    for p in layer.paths.iter().filter(|p| interior(p.role)) {
+        let n = p.points.len();
+        if n == 0 {
+            continue;
+        }
+        for q in [p.points[0], p.points[n / 2], p.points[n - 1]] {
+            let inside = here.grid.any_near(q, CELL, |t| {
+                let r = t.half * (1.0 - ARC_SHARE) - 0.002;
+                r > 0.0 && dist2(q, t) <= r * r
+            }) || (here_flanked && here.inside_loop(q));
+            if !inside {
+                return Some(format!(
+                    "infill point {:.3},{:.3} off the outline",
+                    q[0], q[1]
+                ));
+            }
+        }
+    }
+    None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::{find_regions, printed_area};
+    use crate::layers::testing::layer;
+
+    fn path(role: Role, pts: &[[f64; 2]]) -> Path {
+        crate::layers::testing::path(role, 0.45, pts)
+    }
+
+    fn square(c: f64, half: f64) -> Vec<[f64; 2]> {
+        let (a, b) = (c - half, c + half);
+        vec![[a, a], [b, a], [b, b], [a, b], [a, a]]
+    }
+
+    /// A square part centred at (10, 10): external loop of half side `half`, inner loops
+    /// `perimeters - 1`, and infill lines across the inside when `infill`.
+    fn part(half: f64, perimeters: usize, infill: bool) -> Vec<Path> {
+        let mut v = vec![path(Role::ExternalPerimeter, &square(10.0, half))];
+        for k in 1..perimeters {
+            v.push(path(Role::Perimeter, &square(10.0, half - 0.43 * k as f64)));
+        }
+        if infill {
+            let inner = half - 0.43 * perimeters as f64;
+            let mut y = 10.0 - inner + 0.5;
+            while y < 10.0 + inner {
+                v.push(path(Role::Infill, &[[10.0 - inner, y], [10.0 + inner, y]]));
+                y += 2.0;
+            }
+        }
+        v
+    }
+
+    /// The proof's verdict, checked against the exact path: when it holds, the exact path
+    /// finds nothing.
+    fn verdict(below: Vec<Path>, here: Vec<Path>) -> Option<String> {
+        let (b, h) = (layer(4, below), layer(5, here));
+        let opts = DetectOptions::default();
+        let why = why_not(&Support::new(&b), &h, &Support::new(&h), &opts);
+        if why.is_none() {
+            let (ab, ah) = (printed_area(&b, &opts.area), printed_area(&h, &opts.area));
+            assert!(find_regions(&ab, &h, &ah, &opts).is_empty());
+        }
+        why
+    }
+
+    #[test]
+    fn a_straight_wall_is_proven() {
+        assert_eq!(verdict(part(5.0, 2, true), part(5.0, 2, true)), None);
+        // Moved out by less than the tolerance: still held up.
+        assert_eq!(verdict(part(5.0, 2, true), part(5.1, 2, true)), None);
+    }
+
+    #[test]
+    fn an_outline_beyond_the_tolerance_is_not() {
+        let why = verdict(part(5.0, 2, true), part(5.3, 2, true));
+        assert!(why.is_some_and(|w| w.contains("off the outline below")));
+    }
+
+    #[test]
+    fn a_single_wall_below_leaves_the_inside_to_the_exact_path() {
+        // One wall, no infill: the inside below is a real hole, a roof above is over air.
+        let mut roof = part(5.0, 1, false);
+        for k in 0..20 {
+            let y = 5.5 + 0.45 * k as f64;
+            roof.push(path(Role::SolidInfill, &[[4.8, y], [15.2, y]]));
+        }
+        let why = verdict(part(5.0, 1, false), roof);
+        assert!(why.is_some_and(|w| w.contains("flanked")));
+    }
+
+    #[test]
+    fn a_loop_inside_another_is_left_to_the_exact_path() {
+        // A tube: the inner external loop walls a real hole.
+        let mut tube = part(5.0, 2, false);
+        tube.push(path(Role::ExternalPerimeter, &square(10.0, 2.0)));
+        tube.push(path(Role::Perimeter, &square(10.0, 2.43)));
+        let why = verdict(tube.clone(), tube);
+        assert!(why.is_some_and(|w| w.contains("nested")));
+    }
+
+    #[test]
+    fn parts_close_together_are_left_to_the_exact_path() {
+        // Two parts 0.35 mm apart: growing the area below could close the gap between them.
+        let mut two = part(5.0, 2, true);
+        for p in part(5.0, 2, true) {
+            let mut q = p.clone();
+            q.points.iter_mut().for_each(|c| c[0] += 10.8);
+            two.push(q);
+        }
+        let why = verdict(two.clone(), two);
+        assert!(why.as_ref().is_some_and(|w| w.contains("apart")), "{why:?}");
+    }
+
+    #[test]
+    fn infill_outside_the_walls_is_left_to_the_exact_path() {
+        let mut here = part(5.0, 2, true);
+        here.push(path(Role::Infill, &[[30.0, 30.0], [32.0, 30.0]]));
+        let why = verdict(part(5.0, 2, true), here);
+        assert!(why.is_some_and(|w| w.contains("infill point")));
+    }
+}

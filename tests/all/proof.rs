@@ -1,0 +1,158 @@
+//! The cheap proof that a layer is supported (`geometry::proof`) never changes a result: the
+//! regions found with it and without it are identical on every sample and on the test parts
+//! sliced by PrusaSlicer (default, single-wall hollow, fine layers) and CuraEngine, and it
+//! does spare the polygon work on most layers of ordinary parts.
+
+use crate::common::*;
+
+use printonair::geometry::{detect, DetectOptions, Region};
+use printonair::layers::{LayerKind, LayerReader, ReaderOptions, SlicerConfig};
+
+/// Regions of every layer (as text, to the last bit of every coordinate), and the number of
+/// layers whose area detection never computed (the proof held for them and the next).
+fn regions(data: &[u8], prove: bool) -> (Vec<String>, usize) {
+    let config = SlicerConfig::parse(data);
+    let opts = DetectOptions {
+        external_width: config.external_perimeter_width(),
+        prove,
+        ..Default::default()
+    };
+    let reader = LayerReader::new(
+        data,
+        ReaderOptions {
+            keep_raw: false,
+            config,
+        },
+    );
+    let mut out = Vec::new();
+    let mut spared = 0;
+    detect(reader, &opts, |d| {
+        if d.layer.kind == LayerKind::Layer && d.area.is_none() {
+            spared += 1;
+        }
+        out.extend(d.regions.iter().map(describe));
+        Ok(())
+    })
+    .unwrap();
+    (out, spared)
+}
+
+fn describe(r: &Region) -> String {
+    let ring = |l: &geo::LineString<f64>| {
+        l.0.iter()
+            .map(|c| format!("{:x},{:x}", c.x.to_bits(), c.y.to_bits()))
+            .collect::<Vec<_>>()
+            .join(" ")
+    };
+    format!(
+        "layer {} {:?} area {:x} dist {:x} anchored {:x}/{} ext {:?} | {} | {}",
+        r.layer,
+        r.kind,
+        r.area.to_bits(),
+        r.max_distance.to_bits(),
+        r.anchored_length.to_bits(),
+        r.anchors,
+        r.extrusions,
+        ring(r.polygon.exterior()),
+        r.polygon
+            .interiors()
+            .iter()
+            .map(ring)
+            .collect::<Vec<_>>()
+            .join(" / ")
+    )
+}
+
+/// Asserts the regions are identical both ways; returns the layers spared.
+fn same_both_ways(data: &[u8], what: &str) -> usize {
+    let (exact, _) = regions(data, false);
+    let (proven, spared) = regions(data, true);
+    assert_eq!(exact.len(), proven.len(), "{what}: region count");
+    for (a, b) in exact.iter().zip(&proven) {
+        assert_eq!(a, b, "{what}");
+    }
+    spared
+}
+
+#[test]
+fn the_proof_changes_no_region_of_any_sample() {
+    let mut spared = 0;
+    for s in samples() {
+        let data = read(&s);
+        spared += same_both_ways(&data, &s.display().to_string());
+    }
+    // The PrusaSlicer samples rise straight for most of their height.
+    assert!(spared > 100, "the proof spared only {spared} layers");
+}
+
+const PARTS: [&str; 11] = [
+    "rect_overhang",
+    "circ_overhang",
+    "tri_overhang",
+    "bridge",
+    "arms60",
+    "box_roof_window",
+    "frustums",
+    "hook",
+    "mushroom",
+    "shelves_hole",
+    "sphere_stem",
+];
+
+#[test]
+fn the_proof_changes_no_region_of_any_part_sliced_by_prusaslicer() {
+    let settings: [&[&str]; 3] = [
+        &[],
+        // A single wall and no infill: the inside of a loop is a real hole below a roof.
+        &["--perimeters", "1", "--fill-density", "0"],
+        &[
+            "--layer-height",
+            "0.1",
+            "--fill-pattern",
+            "gyroid",
+            "--perimeters",
+            "3",
+        ],
+    ];
+    let mut spared = 0;
+    for name in PARTS {
+        for args in settings {
+            let Some(data) = slice(name, args) else {
+                return;
+            };
+            spared += same_both_ways(&data, &format!("{name} {args:?}"));
+        }
+    }
+    assert!(spared > 500, "the proof spared only {spared} layers");
+}
+
+#[test]
+fn the_proof_changes_no_region_of_any_part_sliced_by_cura() {
+    for name in PARTS {
+        for settings in [
+            &[][..],
+            &["wall_line_count=1", "infill_sparse_density=0"][..],
+        ] {
+            let Some(data) = slice_cura(&part(name), "prusa_i3_mk3", settings) else {
+                return;
+            };
+            same_both_ways(&data, &format!("{name} by Cura {settings:?}"));
+        }
+    }
+}
+
+#[test]
+fn a_roof_over_a_single_walled_box_is_found_with_the_proof_on() {
+    // 20 x 20 x 10 box, one wall, no infill, closed by a 2 mm roof.
+    let mut m = Mesh::default();
+    m.cuboid([100.0, 100.0, 0.0], [120.0, 120.0, 12.0]);
+    let Some(data) = slice_mesh(&m, &["--perimeters", "1", "--fill-density", "0"]) else {
+        return;
+    };
+    same_both_ways(&data, "single-walled box");
+    // The roof's first layer spans the box's inside: one region. (No layer is spared: with
+    // one wall nothing flanks the external perimeter, so the proof never holds.)
+    let (found, spared) = regions(&data, true);
+    assert_eq!(spared, 0);
+    assert_eq!(found.len(), 1, "{found:?}");
+}
