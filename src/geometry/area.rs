@@ -49,7 +49,7 @@ impl Default for AreaOptions {
 }
 
 /// Join and cap arcs: segment length / radius (radians).
-const ROUND_ANGLE: f64 = 0.35;
+pub(super) const ROUND_ANGLE: f64 = 0.35;
 
 /// The centerlines a footprint is buffered from, by width: everything a footprint depends
 /// on. Two layers with equal `Strands` (a vertical wall repeats its perimeters exactly) have

@@ -232,6 +232,13 @@ pub fn opening(mp: &MultiPolygon<f64>, r: f64) -> MultiPolygon<f64> {
 /// A polyline in mm.
 pub type Polyline = Vec<[f64; 2]>;
 
+/// Length of a polyline (mm).
+pub fn polyline_length(p: &[[f64; 2]]) -> f64 {
+    p.windows(2)
+        .map(|w| ((w[1][0] - w[0][0]).powi(2) + (w[1][1] - w[0][1]).powi(2)).sqrt())
+        .sum()
+}
+
 /// The parts of `lines` inside `area` (or outside it, with `inside` false).
 pub fn clip_lines(lines: &[Polyline], area: &MultiPolygon<f64>, inside: bool) -> Vec<Polyline> {
     use geo::{BooleanOps, LineString, MultiLineString};

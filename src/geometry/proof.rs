@@ -265,8 +265,9 @@ impl Support {
                 if !closed(p) {
                     loops_ok = false;
                 }
-                boxes.push(points_box(&p.points));
-                loop_polys.push((points_box(&p.points), p.points.clone()));
+                let b = points_box(&p.points);
+                boxes.push(b);
+                loop_polys.push((b, p.points.clone()));
                 id
             });
             let mut s_at = 0.0;
@@ -306,7 +307,11 @@ impl Support {
             let inner = pick(&|s| s.role == Role::Perimeter);
             let ext = pick(&|s| s.loop_at.is_some());
             sup.flank_gap = Support::flanks(layer, &inner);
-            let loop_len: Vec<f64> = sup.loops.iter().map(|(_, pts)| polyline_len(pts)).collect();
+            let loop_len: Vec<f64> = sup
+                .loops
+                .iter()
+                .map(|(_, pts)| super::polyline_length(pts))
+                .collect();
             sup.approach = Support::closest_approach(&ext, &loop_len);
         }
         sup
@@ -465,13 +470,6 @@ fn closed(p: &Path) -> bool {
         }
         _ => false,
     }
-}
-
-fn polyline_len(points: &[[f64; 2]]) -> f64 {
-    points
-        .windows(2)
-        .map(|w| ((w[1][0] - w[0][0]).powi(2) + (w[1][1] - w[0][1]).powi(2)).sqrt())
-        .sum()
 }
 
 fn points_box(points: &[[f64; 2]]) -> [f64; 4] {
@@ -644,6 +642,14 @@ mod tests {
             assert!(find_regions(&ab, &h, &ah, &opts).is_empty());
         }
         why
+    }
+
+    #[test]
+    fn the_slacks_cover_the_polygon_errors_they_stand_for() {
+        let buffer_chord = 1.0 - (crate::geometry::area::ROUND_ANGLE / 2.0).cos();
+        assert!(ARC_SHARE >= buffer_chord, "{buffer_chord}");
+        let offset = crate::geometry::ARC_TOLERANCE + 2.0 / crate::geometry::CLIPPER_SCALE;
+        assert!(OFFSET_SLACK >= offset, "{offset}");
     }
 
     #[test]

@@ -120,11 +120,7 @@ pub struct Plan {
     pub with_perimeter: bool,
 }
 
-pub fn polyline_length(p: &[[f64; 2]]) -> f64 {
-    p.windows(2)
-        .map(|w| ((w[1][0] - w[0][0]).powi(2) + (w[1][1] - w[0][1]).powi(2)).sqrt())
-        .sum()
-}
+pub use crate::geometry::polyline_length;
 
 /// Zones narrower than this are slivers of numeric noise along walls, not overhang.
 const SLIVER: f64 = 0.03;
