@@ -8,6 +8,8 @@
 //! Print-on-Air with the [`poa`] loop planner, [`ab`]'s A/B copy) and whole-stream
 //! [`movemap`]s -> one G-code [`writer`] (typed speeds, the kinematics seam) -> finish
 //! ([`progress`] M73, footer, [`output`]'s atomic writes); [`rewrite`] runs it for a file.
+//! [`helix`] is the layer-less path: a vase-mode helix found, deformed by a move map
+//! (expressions through [`expr`]), checked in 3D and finished like a rewrite.
 //! [`estimate`], [`check`], [`report`] and [`preview`] read the same stages for what a user
 //! reads and sees; [`settings`] is the one table of poa's own settings. The binary `poa`
 //! only parses arguments, calls [`rewrite`] and the reports, prints and maps errors to exit
@@ -20,8 +22,10 @@ pub mod config;
 pub mod emit;
 pub mod error;
 pub mod estimate;
+pub mod expr;
 pub mod gcode;
 pub mod geometry;
+pub mod helix;
 pub mod input;
 pub mod layers;
 pub mod machine;

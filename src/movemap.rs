@@ -98,11 +98,28 @@ pub fn apply<R: BufRead, W: Write>(
             // Not a move: the printer does what the file says, so a G92 or a homing puts
             // the output back in step with the file.
             output.write_all(&raw).map_err(io_err)?;
+            // Only the axes the line names are reset (a bare G92 or G28 resets all): after
+            // a `G92 E0` the output is still where the map put it, not where the file is.
             let resync = matches!(action, Action::SetPosition);
+            let bare = parsed.words.is_empty()
+                || (parsed.get(b'X').is_none()
+                    && parsed.get(b'Y').is_none()
+                    && parsed.get(b'Z').is_none()
+                    && parsed.get(b'E').is_none());
+            let mut pos = pen.pos;
+            if resync {
+                let now = machine.position();
+                for (i, l) in [b'X', b'Y', b'Z'].into_iter().enumerate() {
+                    if bare || parsed.get(l).is_some() {
+                        pos[i] = now[i];
+                    }
+                }
+            }
+            let e_reset = resync && (bare || parsed.get(b'E').is_some());
             pen = Pen {
                 relative_e: machine.e_relative(),
-                e: if resync { machine.e_logical() } else { pen.e },
-                pos: if resync { machine.position() } else { pen.pos },
+                e: if e_reset { machine.e_logical() } else { pen.e },
+                pos,
                 feed: MmPerMin(machine.feedrate()),
             };
             continue;
@@ -115,6 +132,20 @@ pub fn apply<R: BufRead, W: Write>(
         if in_step && pieces.len() == 1 && pieces[0] == Piece::unchanged(&m) {
             output.write_all(&raw).map_err(io_err)?;
             pen = Pen::of(&machine);
+            continue;
+        }
+        if before.xyz_relative() && pieces.len() == 1 && pieces[0] == Piece::unchanged(&m) {
+            // A relative move the map leaves alone moves by the same amount from wherever
+            // the output is: copied, and the output stays out of step by what it was.
+            output.write_all(&raw).map_err(io_err)?;
+            for i in 0..3 {
+                pen.pos[i] += m.to[i] - m.from[i];
+            }
+            if !pen.relative_e {
+                pen.e += m.e;
+            }
+            pen.relative_e = machine.e_relative();
+            pen.feed = MmPerMin(machine.feedrate());
             continue;
         }
         if before.xyz_relative() {

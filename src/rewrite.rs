@@ -344,3 +344,71 @@ pub fn convert_file(input: &Path, out: &Path, libbgcode: bool) -> Result<()> {
     };
     output::write_bytes(out, &[input], &bytes)
 }
+
+/// What `poa deform` did.
+pub struct DeformOutcome {
+    pub deformed: crate::helix::Deformed,
+    pub bytes_in: u64,
+}
+
+/// `poa deform`: the vase-mode print `file` deformed by `spec` into `out` (atomically, never
+/// onto the input); refused with the first failing point when the result is not printable,
+/// unless `force`. `preview` is a folder for an HTML page with the side profile and top view.
+pub fn deform_file(
+    file: &Path,
+    out: &Path,
+    spec: &crate::helix::deform::Spec,
+    force: bool,
+    preview: Option<&Path>,
+) -> Result<DeformOutcome> {
+    output::check_not_input(out, &[file])?;
+    if let Some(dir) = preview {
+        output::check_not_input(dir, &[file])?;
+    }
+    let mut opened = input::open(file)?;
+    if opened.binary.is_some() {
+        return Err(Error::Invalid(format!(
+            "{} is binary G-code; convert it to text first (`poa convert {} vase.gcode`)",
+            file.display(),
+            file.display()
+        )));
+    }
+    let mut text = Vec::new();
+    opened
+        .reader
+        .read_to_end(&mut text)
+        .map_err(|source| Error::Read {
+            path: file.to_path_buf(),
+            source,
+        })?;
+    let deformed =
+        crate::helix::deform_text(&text, &opened.config, spec, force).map_err(|e| match e {
+            Error::Refused(m) => Error::Refused(format!("{}: {m}", file.display())),
+            other => other,
+        })?;
+    output::write_bytes(out, &[file], &deformed.text)?;
+    if let Some(dir) = preview {
+        std::fs::create_dir_all(dir).map_err(|source| Error::Write {
+            path: dir.to_path_buf(),
+            source,
+        })?;
+        let title = format!(
+            "poa deform {}: {}",
+            spec.preset.as_deref().unwrap_or("expressions"),
+            file.file_name()
+                .map(|f| f.to_string_lossy().to_string())
+                .unwrap_or_default()
+        );
+        let page = crate::helix::picture::page(
+            &title,
+            &deformed.check,
+            deformed.helix_out.center,
+            deformed.bead,
+        );
+        output::write_bytes(&dir.join("index.html"), &[file, out], page.as_bytes())?;
+    }
+    Ok(DeformOutcome {
+        deformed,
+        bytes_in: text.len() as u64,
+    })
+}

@@ -114,6 +114,9 @@ pub enum Command {
     },
     /// Simulate the deposition: how much of each layer rests on material already there.
     Check(CheckArgs),
+    /// Layer-less helical printing: deform a spiral-vase print into a dish, vase, sphere or
+    /// your own shape (expressions), checked for printability before it is written.
+    Deform(DeformArgs),
     /// Draw layers as SVG: the layer below, the strands by role, the regions over air.
     #[command(group(clap::ArgGroup::new("what").required(true).args(["layer", "regions"])))]
     Preview {
@@ -340,4 +343,49 @@ pub fn parse_args() -> Result<Cli, ExitCode> {
         );
         ExitCode::from(2)
     })
+}
+
+/// `poa deform`'s flags.
+#[derive(clap::Args)]
+#[command(group(clap::ArgGroup::new("shape").required(true).args(["preset", "cylindrical", "cartesian"])))]
+pub struct DeformArgs {
+    /// A spiral-vase G-code file (PrusaSlicer --spiral-vase, Cura spiralize, ...).
+    #[arg(value_name = "IN")]
+    pub file: PathBuf,
+    /// Output file.
+    #[arg(short, long, value_name = "OUT")]
+    pub output: PathBuf,
+    /// A built-in deformation: dish, vase or sphere (see README for their formulas).
+    #[arg(long, value_name = "NAME", value_parser = ["dish", "vase", "sphere"])]
+    pub preset: Option<String>,
+    /// A named parameter of the preset or of your expressions: `k=1.2` (repeatable).
+    #[arg(long = "param", value_name = "K=V")]
+    pub params: Vec<String>,
+    /// Cylindrical mapping `R;THETA;Z` over x, y, z, r, theta (radians) and parameters.
+    #[arg(long, value_name = "'R;THETA;Z'")]
+    pub cylindrical: Option<String>,
+    /// Cartesian mapping `X;Y;Z` over x, y, z, r, theta and parameters.
+    #[arg(long, value_name = "'X;Y;Z'")]
+    pub cartesian: Option<String>,
+    /// Output cross-section (mm2) from c (input cross-section) and the point; default: c.
+    #[arg(long, value_name = "EXPR")]
+    pub cross_section: Option<String>,
+    /// Output speed (mm/s) from v (input speed) and the point; default: v.
+    #[arg(long, value_name = "EXPR")]
+    pub speed: Option<String>,
+    /// Centre of the coordinates, `X,Y` (default: the helix's own axis).
+    #[arg(long, value_name = "X,Y")]
+    pub center: Option<String>,
+    /// Largest distance of the written path from the mapping, mm.
+    #[arg(long, value_name = "MM", default_value_t = 0.01)]
+    pub chord: f64,
+    /// Write the file even when the printability check fails (with a warning).
+    #[arg(long)]
+    pub force: bool,
+    /// Write an HTML page with the side profile and top view into this folder.
+    #[arg(long, value_name = "DIR")]
+    pub preview: Option<PathBuf>,
+    /// Machine-readable summary.
+    #[arg(long)]
+    pub json: bool,
 }

@@ -8,8 +8,10 @@ use printonair::emit::ProcessReport;
 use printonair::rewrite::{self, Request};
 use printonair::{input, output, preview, report};
 
-use crate::args::{CheckArgs, DetectArgs, RewriteArgs};
-use crate::print::{emit, error_text, skipped_line, summary_line, verbose_lines, write_stdout};
+use crate::args::{CheckArgs, DeformArgs, DetectArgs, RewriteArgs};
+use crate::print::{
+    emit, emit_json, error_text, skipped_line, summary_line, verbose_lines, write_stdout,
+};
 
 /// Writes an output file atomically, refusing to write over any of `inputs`.
 fn write_file(path: &Path, inputs: &[&Path], text: &str) -> anyhow::Result<()> {
@@ -40,6 +42,11 @@ pub fn check(args: CheckArgs) -> anyhow::Result<ExitCode> {
         output::check_not_input(out, &inputs)?;
     }
     let opened = input::open(&file)?;
+    if opened.binary.is_none() && compare.is_none() && svg_layer.is_none() {
+        if let Some(code) = check_layerless(&file, opened.config.clone(), json, fail_in_air)? {
+            return Ok(code);
+        }
+    }
     let opts = printonair::check::CheckOptions {
         overlap_min,
         max_bridge,
@@ -344,4 +351,161 @@ fn check_regions_folder(dir: &std::path::Path, input: &std::path::Path) -> anyho
         dir.display()
     );
     Ok(())
+}
+
+/// `poa check` of a layer-less (helical) print: every point judged in 3D against all
+/// earlier material. `None` when the file is not one (the layered check runs instead).
+fn check_layerless(
+    file: &Path,
+    config: printonair::layers::SlicerConfig,
+    json: bool,
+    fail_in_air: Option<f64>,
+) -> anyhow::Result<Option<ExitCode>> {
+    use printonair::helix;
+    let text = input::read_all(file)?;
+    let Ok(h) = helix::find(&text) else {
+        return Ok(None);
+    };
+    let bead = helix::bead_of(&config, &h);
+    let rep = helix::printable::check(&text, &h, bead, 0);
+    if json {
+        #[derive(serde::Serialize)]
+        struct Out<'a> {
+            file: String,
+            layerless: bool,
+            helix_turns: f64,
+            pitch_mm: f64,
+            report: &'a helix::printable::Report,
+        }
+        emit_json(&Out {
+            file: file.display().to_string(),
+            layerless: true,
+            helix_turns: h.turns,
+            pitch_mm: h.pitch,
+            report: &rep,
+        })?;
+    } else {
+        let mut t = format!(
+            "{}: layer-less (helical) print, {:.1} turns of {:.3} mm from Z {:.2} to {:.2}\n\
+             points judged {}: unsupported {} ({:.1} mm in air), collisions {}, lift out of range {}, too steep {}; largest lean {:.1} deg\n",
+            file.display(),
+            h.turns,
+            h.pitch,
+            h.z0,
+            h.z_top,
+            rep.points,
+            rep.unsupported,
+            rep.in_air_mm,
+            rep.collisions,
+            rep.lift_out_of_range,
+            rep.too_steep,
+            rep.max_lean_deg
+        );
+        match &rep.first {
+            None => t.push_str("every point rests on earlier material; no collision\n"),
+            Some(f) => t.push_str(&format!("first failing point: {f}\n")),
+        }
+        write_stdout(&t)?;
+    }
+    if let Some(limit) = fail_in_air {
+        if rep.in_air_mm > limit || rep.collisions > 0 {
+            eprintln!(
+                "poa: {:.1} mm in air and {} collisions (limit {limit} mm in air)",
+                rep.in_air_mm, rep.collisions
+            );
+            return Ok(Some(ExitCode::from(2)));
+        }
+    }
+    Ok(Some(ExitCode::SUCCESS))
+}
+
+/// `poa deform`.
+pub fn deform(args: DeformArgs) -> anyhow::Result<ExitCode> {
+    use printonair::helix::deform::{Frame, Spec};
+    let mut params = Vec::new();
+    for p in &args.params {
+        let (k, v) = p
+            .split_once('=')
+            .ok_or_else(|| anyhow::anyhow!("--param takes NAME=VALUE, got `{p}`"))?;
+        let v: f64 = v
+            .trim()
+            .parse()
+            .ok()
+            .filter(|v: &f64| v.is_finite())
+            .ok_or_else(|| anyhow::anyhow!("--param {k}: `{v}` is not a number"))?;
+        let k = k.trim();
+        anyhow::ensure!(
+            !k.is_empty() && k.chars().all(|c| c.is_ascii_alphanumeric() || c == '_'),
+            "--param name `{k}` must be letters, digits and _"
+        );
+        params.push((k.to_string(), v));
+    }
+    let mut spec = match (&args.preset, &args.cylindrical, &args.cartesian) {
+        (Some(p), None, None) => Spec::preset(p, &params)?,
+        (None, Some(e), None) => Spec::expressions(Frame::Cylindrical, e, &params)?,
+        (None, None, Some(e)) => Spec::expressions(Frame::Cartesian, e, &params)?,
+        _ => anyhow::bail!("give one of --preset, --cylindrical, --cartesian"),
+    };
+    spec.cross_section = args.cross_section.clone();
+    spec.speed = args.speed.clone();
+    spec.chord = args.chord;
+    if let Some(c) = &args.center {
+        let v = crate::parse_numbers(c, 2, "--center")?;
+        spec.center = Some([v[0], v[1]]);
+    }
+    let done = rewrite::deform_file(
+        &args.file,
+        &args.output,
+        &spec,
+        args.force,
+        args.preview.as_deref(),
+    )?;
+    let d = &done.deformed;
+    if let Some(f) = &d.check.first {
+        eprintln!("poa: warning: written with --force although not printable: {f}");
+    }
+    if args.json {
+        #[derive(serde::Serialize)]
+        struct Out<'a> {
+            output: String,
+            turns: f64,
+            pitch_mm: f64,
+            center: [f64; 2],
+            lines_rewritten: u64,
+            moves_written: u64,
+            time_in_s: f64,
+            time_out_s: f64,
+            check: &'a printonair::helix::printable::Report,
+        }
+        emit_json(&Out {
+            output: args.output.display().to_string(),
+            turns: d.helix.turns,
+            pitch_mm: d.helix.pitch,
+            center: d.helix.center,
+            lines_rewritten: d.lines_rewritten,
+            moves_written: d.pieces,
+            time_in_s: d.time_in,
+            time_out_s: d.time_out,
+            check: &d.check,
+        })?;
+    } else {
+        write_stdout(&format!(
+            "{}: {:.1} turns of {:.3} mm around ({:.2}, {:.2}) deformed; {} moves written for {} lines; time {} -> {}; {}\n",
+            args.output.display(),
+            d.helix.turns,
+            d.helix.pitch,
+            d.helix.center[0],
+            d.helix.center[1],
+            d.pieces,
+            d.lines_rewritten,
+            printonair::estimate::format_dhms(d.time_in),
+            printonair::estimate::format_dhms(d.time_out),
+            if d.check.ok() {
+                format!("printable (largest lean {:.1} deg)", d.check.max_lean_deg)
+            } else {
+                "NOT printable (--force)".to_string()
+            }
+        ))?;
+    }
+    Ok(ExitCode::SUCCESS)
 }

@@ -141,6 +141,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             Ok(ExitCode::SUCCESS)
         }
         Command::Check(args) => commands::check(args),
+        Command::Deform(args) => commands::deform(args),
         Command::Preview {
             file,
             layer,

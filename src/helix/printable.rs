@@ -1,0 +1,402 @@
+//! Printability of a layer-less (helical) print, judged in 3D: Kanada's condition that every
+//! string rests on one printed before it.
+//!
+//! Input: G-code text and its [`Helix`]. Output: a [`Report`] with counts per rule, the first
+//! failing point (turn, lean angle, x y z, rule) and sampled points for pictures.
+//!
+//! Model (stated in the README): extrusions are sampled every quarter bead width in file
+//! order; everything before the helix is material that exists (it is not judged here: the
+//! layered check covers it). A helix point is judged against all earlier material nearby,
+//! except the last [`GUARD_WIDTHS`] widths of its own path (the bead it is part of):
+//! - **support**: an earlier bead centre within `reach = max(1.05 h, 0.75 w)` of it in 3D (a
+//!   bead lies on or beside one that overlaps it by at least a quarter of its width; plain
+//!   stacking at the sliced pitch `h` passes);
+//! - **collision**: no earlier material within the nozzle's radius (horizontally) higher than
+//!   the nozzle tip (+0.03 mm);
+//! - from the second turn on, against the nearest earlier point S when it is the helix's: **lift** `z - S.z` between
+//!   5 % and 100 % of `h` (+0.03 mm), and **lean** (angle of P - S from the vertical) at most
+//!   85 degrees.
+
+use std::collections::{HashMap, VecDeque};
+
+use crate::helix::{moves, Helix};
+
+/// Own-path length excluded from support, in bead widths.
+pub const GUARD_WIDTHS: f64 = 4.0;
+/// Lift per turn allowed, as shares of the sliced pitch.
+pub const LIFT_MIN: f64 = 0.05;
+pub const LIFT_MAX: f64 = 1.0;
+/// Largest lean from the vertical (degrees).
+pub const LEAN_MAX: f64 = 85.0;
+/// Slack on heights (mm): slicers round Z to 0.001-0.01 mm.
+const Z_SLACK: f64 = 0.03;
+
+/// The bead and nozzle the check judges with.
+#[derive(Debug, Clone, Copy)]
+pub struct Bead {
+    /// Bead width (mm).
+    pub width: f64,
+    /// Sliced pitch: the bead height (mm).
+    pub height: f64,
+    /// Nozzle radius (mm).
+    pub nozzle_radius: f64,
+}
+
+impl Bead {
+    pub fn reach(&self) -> f64 {
+        (1.05 * self.height).max(0.75 * self.width)
+    }
+}
+
+/// Which rule a point breaks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Rule {
+    Support,
+    Collision,
+    Lift,
+    Lean,
+}
+
+impl Rule {
+    pub fn describe(self) -> &'static str {
+        match self {
+            Rule::Support => "no earlier material within reach (printed in air)",
+            Rule::Collision => "the nozzle tip would be below material already printed",
+            Rule::Lift => "lift over the turn below out of 5-100 % of the bead height",
+            Rule::Lean => "leans more than 85 deg from the vertical over the turn below",
+        }
+    }
+}
+
+/// The first point that breaks a rule.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Finding {
+    pub rule: Rule,
+    pub turn: f64,
+    pub lean_deg: f64,
+    pub lift_mm: f64,
+    pub point: [f64; 3],
+    pub line: u64,
+}
+
+impl std::fmt::Display for Finding {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "turn {:.2}, line {}, x {:.3} y {:.3} z {:.3}",
+            self.turn, self.line, self.point[0], self.point[1], self.point[2]
+        )?;
+        if matches!(self.rule, Rule::Lift | Rule::Lean) {
+            write!(
+                f,
+                ", lean {:.1} deg, lift {:.3} mm",
+                self.lean_deg, self.lift_mm
+            )?;
+        }
+        write!(f, ": {}", self.rule.describe())
+    }
+}
+
+/// One judged point (for pictures).
+#[derive(Debug, Clone, Copy)]
+pub struct Sample {
+    pub p: [f64; 3],
+    pub ok: bool,
+}
+
+/// What the check found.
+#[derive(Debug, Clone, Default, serde::Serialize)]
+pub struct Report {
+    pub points: u64,
+    pub unsupported: u64,
+    pub collisions: u64,
+    pub lift_out_of_range: u64,
+    pub too_steep: u64,
+    /// Largest lean over the turn below seen (degrees), from the second turn on.
+    pub max_lean_deg: f64,
+    pub turns: f64,
+    pub first: Option<Finding>,
+    /// Length of helix path printed without support (mm).
+    pub in_air_mm: f64,
+    #[serde(skip)]
+    pub samples: Vec<Sample>,
+}
+
+impl Report {
+    pub fn ok(&self) -> bool {
+        self.first.is_none()
+    }
+}
+
+type Key = (i32, i32, i32);
+
+struct Grid {
+    cell: f64,
+    cells: HashMap<Key, Vec<([f64; 3], bool)>>,
+    /// Highest material per fine XY cell (for collisions).
+    tops: HashMap<(i32, i32), f64>,
+    fine: f64,
+}
+
+impl Grid {
+    fn key(&self, p: [f64; 3]) -> Key {
+        (
+            (p[0] / self.cell).floor() as i32,
+            (p[1] / self.cell).floor() as i32,
+            (p[2] / self.cell).floor() as i32,
+        )
+    }
+
+    /// `helix`: material of the helix (the lift and lean rules judge against it only).
+    fn insert(&mut self, p: [f64; 3], helix: bool) {
+        let k = self.key(p);
+        self.cells.entry(k).or_default().push((p, helix));
+        let f = (
+            (p[0] / self.fine).floor() as i32,
+            (p[1] / self.fine).floor() as i32,
+        );
+        let t = self.tops.entry(f).or_insert(f64::NEG_INFINITY);
+        *t = t.max(p[2]);
+    }
+
+    /// Nearest material point within one cell around `p`.
+    fn nearest(&self, p: [f64; 3]) -> Option<([f64; 3], f64, bool)> {
+        let k = self.key(p);
+        let mut best: Option<([f64; 3], f64, bool)> = None;
+        for dx in -1..=1 {
+            for dy in -1..=1 {
+                for dz in -1..=1 {
+                    let Some(v) = self.cells.get(&(k.0 + dx, k.1 + dy, k.2 + dz)) else {
+                        continue;
+                    };
+                    for (q, h) in v {
+                        let d =
+                            ((q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2) + (q[2] - p[2]).powi(2))
+                                .sqrt();
+                        if best.is_none_or(|b| d < b.1) {
+                            best = Some((*q, d, *h));
+                        }
+                    }
+                }
+            }
+        }
+        best
+    }
+
+    /// Highest material within `radius` (horizontally) of `p`.
+    fn top_near(&self, p: [f64; 3], radius: f64) -> f64 {
+        let n = (radius / self.fine).ceil() as i32;
+        let (cx, cy) = (
+            (p[0] / self.fine).floor() as i32,
+            (p[1] / self.fine).floor() as i32,
+        );
+        let mut top = f64::NEG_INFINITY;
+        for i in -n..=n {
+            for j in -n..=n {
+                // Cells whose nearest point is within the radius.
+                let gx = ((i.abs() - 1).max(0)) as f64 * self.fine;
+                let gy = ((j.abs() - 1).max(0)) as f64 * self.fine;
+                if gx * gx + gy * gy > radius * radius {
+                    continue;
+                }
+                if let Some(t) = self.tops.get(&(cx + i, cy + j)) {
+                    top = top.max(*t);
+                }
+            }
+        }
+        top
+    }
+}
+
+/// Judges every point of `helix` in `text` (see the module doc). `keep_samples` keeps at
+/// most that many judged points, evenly spread, for pictures.
+pub fn check(text: &[u8], helix: &Helix, bead: Bead, keep_samples: usize) -> Report {
+    let step = (bead.width / 4.0).max(0.02);
+    let guard = GUARD_WIDTHS * bead.width;
+    let mut grid = Grid {
+        cell: bead.reach().max(bead.nozzle_radius),
+        cells: HashMap::new(),
+        tops: HashMap::new(),
+        fine: (bead.nozzle_radius / 2.0).max(0.05),
+    };
+    let mut report = Report {
+        turns: helix.turns,
+        ..Report::default()
+    };
+    // Helix samples not yet material: (path length, point).
+    let mut pending: VecDeque<(f64, [f64; 3])> = VecDeque::new();
+    let mut path = 0.0;
+    let mut angle = 0.0f64;
+    let mut prev_angle: Option<f64> = None;
+    let every = (helix.length / step / keep_samples.max(1) as f64)
+        .ceil()
+        .max(1.0) as u64;
+    let c = helix.center;
+    moves(text, |m, _| {
+        if !m.is_extrusion() || m.line > helix.last_line {
+            return;
+        }
+        let pts = m.points(0.01);
+        let total: f64 = pts
+            .windows(2)
+            .map(|w| (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]))
+            .sum();
+        let len3 = (total.powi(2) + (m.to[2] - m.from[2]).powi(2)).sqrt();
+        let n = ((len3 / step).ceil() as usize).clamp(1, 1_000_000);
+        let at = |f: f64| -> [f64; 3] {
+            // Point at share f of the move (along the XY polyline, Z linear).
+            let want = f * total;
+            let mut acc = 0.0;
+            for w in pts.windows(2) {
+                let l = (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]);
+                if acc + l >= want || l == 0.0 {
+                    let t = if l > 0.0 {
+                        ((want - acc) / l).clamp(0.0, 1.0)
+                    } else {
+                        1.0
+                    };
+                    return [
+                        w[0][0] + (w[1][0] - w[0][0]) * t,
+                        w[0][1] + (w[1][1] - w[0][1]) * t,
+                        m.from[2] + (m.to[2] - m.from[2]) * f,
+                    ];
+                }
+                acc += l;
+            }
+            m.to
+        };
+        if m.line < helix.first_line {
+            for i in 0..=n {
+                grid.insert(at(i as f64 / n as f64), false);
+            }
+            return;
+        }
+        let piece = len3 / n as f64;
+        for i in 1..=n {
+            let p = at(i as f64 / n as f64);
+            path += piece;
+            while pending.front().is_some_and(|(l, _)| *l < path - guard) {
+                let (_, q) = pending.pop_front().unwrap();
+                grid.insert(q, true);
+            }
+            let a = (p[1] - c[1]).atan2(p[0] - c[0]);
+            if let Some(pa) = prev_angle {
+                let mut d = a - pa;
+                while d > std::f64::consts::PI {
+                    d -= std::f64::consts::TAU;
+                }
+                while d < -std::f64::consts::PI {
+                    d += std::f64::consts::TAU;
+                }
+                angle += d;
+            }
+            prev_angle = Some(a);
+            let turn = angle.abs() / std::f64::consts::TAU;
+            report.points += 1;
+            let near = grid.nearest(p);
+            let mut broken = None;
+            let (mut lean, mut lift) = (0.0, 0.0);
+            match near {
+                Some((s, d, on_helix)) if d <= bead.reach() => {
+                    let horiz = (p[0] - s[0]).hypot(p[1] - s[1]);
+                    lean = horiz.atan2(p[2] - s[2]).to_degrees();
+                    // Lift: above the highest earlier material under the bead (within
+                    // half a width); a bead leaning beside the one below has none.
+                    let under = grid.top_near(p, bead.width / 2.0);
+                    lift = if under.is_finite() {
+                        p[2] - under
+                    } else {
+                        bead.height
+                    };
+                    if turn >= 1.0 && on_helix {
+                        report.max_lean_deg = report.max_lean_deg.max(lean);
+                        if lift < LIFT_MIN * bead.height || lift > LIFT_MAX * bead.height + Z_SLACK
+                        {
+                            report.lift_out_of_range += 1;
+                            broken = Some(Rule::Lift);
+                        } else if lean > LEAN_MAX {
+                            report.too_steep += 1;
+                            broken = Some(Rule::Lean);
+                        }
+                    }
+                }
+                _ => {
+                    report.unsupported += 1;
+                    report.in_air_mm += piece;
+                    broken = Some(Rule::Support);
+                }
+            }
+            if grid.top_near(p, bead.nozzle_radius) > p[2] + Z_SLACK {
+                report.collisions += 1;
+                broken = broken.or(Some(Rule::Collision));
+            }
+            if let (Some(rule), None) = (broken, &report.first) {
+                report.first = Some(Finding {
+                    rule,
+                    turn,
+                    lean_deg: lean,
+                    lift_mm: lift,
+                    point: p,
+                    line: m.line,
+                });
+            }
+            if keep_samples > 0 && report.points % every == 0 {
+                report.samples.push(Sample {
+                    p,
+                    ok: broken.is_none(),
+                });
+            }
+            pending.push_back((path, p));
+        }
+    });
+    report
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::helix::{find, tests::vase};
+
+    const BEAD: Bead = Bead {
+        width: 0.45,
+        height: 0.2,
+        nozzle_radius: 0.2,
+    };
+
+    #[test]
+    fn a_plain_vase_stands_and_a_turn_set_off_sideways_does_not() {
+        let text = vase(15.0, 0.2, 10);
+        let h = find(text.as_bytes()).unwrap();
+        let r = check(text.as_bytes(), &h, BEAD, 100);
+        assert!(r.ok(), "{:?}", r.first);
+        assert!(r.points > 1000 && r.max_lean_deg < 5.0, "{r:?}");
+        // The same helix, each turn 0.6 mm farther out: off the one below.
+        let mut shifted = String::new();
+        for line in text.lines() {
+            let words: Vec<&str> = line.split(' ').collect();
+            let z = words
+                .iter()
+                .find_map(|w| w.strip_prefix('Z'))
+                .and_then(|z| z.parse::<f64>().ok());
+            match (z, line.contains(" E")) {
+                (Some(z), true) => {
+                    let x: f64 = words[1][1..].parse().unwrap();
+                    let y: f64 = words[2][1..].parse().unwrap();
+                    let k = 1.0 + 3.0 * (z - 0.2) / 15.0;
+                    let (x, y) = (100.0 + (x - 100.0) * k, 100.0 + (y - 100.0) * k);
+                    shifted.push_str(&format!("G1 X{x:.3} Y{y:.3} Z{z:.4} {}\n", words[4]));
+                }
+                _ => {
+                    shifted.push_str(line);
+                    shifted.push('\n');
+                }
+            }
+        }
+        let h = find(shifted.as_bytes()).unwrap();
+        let r = check(shifted.as_bytes(), &h, BEAD, 0);
+        let f = r.first.clone().expect("refused");
+        assert_eq!(f.rule, Rule::Support, "{f}");
+        assert!(f.turn < 1.2, "{f}");
+    }
+}
