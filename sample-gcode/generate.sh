@@ -172,4 +172,14 @@ version=$(sed -n 's/^;Generated with Cura_SteamEngine \(.*\)$/\1/p' "$raw" | hea
 prepend_header "; poa sample: sliced by generate.sh from tests/parts/rect_overhang.stl with CuraEngine ${version:-4.13} (fdmprinter definition, MK3S-like settings, 1.75 mm filament and 0.45 mm lines set on extruder 0 with -e0), absolute E" \
     "$raw" "$OUT_DIR/rect_overhang_cura.gcode"
 
+# Spiral vase (input of `poa deform`): a 30 x 15 mm cylinder, 3 solid bottom layers.
+raw=$WORK/vase.gcode
+prusa-slicer --load "$CONFIG" --spiral-vase --perimeters 1 --top-solid-layers 0 \
+    --bottom-solid-layers 3 --fill-density 0 --center 125,105 \
+    --export-gcode -o "$raw" "$SPEC/vase_cylinder.stl" >"$WORK/prusa.log" 2>&1 ||
+    { tail -n 30 "$WORK/prusa.log" >&2; exit 1; }
+grep -q '^; spiral_vase = 1' "$raw" || { echo "generate.sh: $raw is not in vase mode" >&2; exit 1; }
+prepend_header "; poa sample: sliced by generate.sh from tests/parts/vase_cylinder.stl with PrusaSlicer (spiral vase, 3 bottom layers), relative E" \
+    "$raw" "$OUT_DIR/vase_cylinder_prusa.gcode"
+
 echo "done; hand-written samples (see README.md) were left untouched"

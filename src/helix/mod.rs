@@ -78,8 +78,21 @@ enum Step {
     Other,
 }
 
-/// Longest flat extrusion inside a run (mm).
+/// Longest flat extrusion inside a run (mm) when the run rises fast.
 const MAX_FLAT: f64 = 5.0;
+/// Z resolution assumed of the file (mm): slicers and poa write Z to 3 decimals.
+const Z_STEP: f64 = 0.001;
+
+/// Longest flat extrusion inside a run that has risen `rise` mm over `length` mm: at least
+/// [`MAX_FLAT`], and as long as the run's own rate of rise takes to climb two Z steps, so
+/// that a slow helix (a dish at 0.1 mm layers rises 0.03 mm a turn, one 0.001 mm step every
+/// 8 mm) stays one run.
+fn max_flat(rise: f64, length: f64) -> f64 {
+    if rise <= 0.0 || length <= 0.0 {
+        return MAX_FLAT;
+    }
+    (2.0 * Z_STEP * length / rise).clamp(MAX_FLAT, 1000.0)
+}
 
 fn step(m: &Move) -> Step {
     let dz = m.to[2] - m.from[2];
@@ -120,7 +133,12 @@ pub fn find(text: &[u8]) -> Result<Helix, Error> {
         match st {
             Step::Flat(l) if cur.is_some() => {
                 flat += l;
-                if flat > MAX_FLAT {
+                if flat
+                    > max_flat(
+                        cur.as_ref().map_or(0.0, |r| r.z1 - r.z0),
+                        cur.as_ref().map_or(0.0, |r| r.length),
+                    )
+                {
                     if let Some(r) = cur.take() {
                         if r.length > best.length {
                             best = r;
@@ -423,6 +441,26 @@ pub(crate) mod tests {
         );
         assert!((h.r0 - 15.0).abs() < 0.01, "{h:?}");
         assert_eq!(h.first_line, 6 + 64);
+    }
+
+    #[test]
+    fn a_slow_helix_written_to_three_decimals_is_one_run() {
+        // A dish at 0.1 mm layers rises 0.03 mm a turn: with Z to 3 decimals, 8 mm of
+        // path go by without a Z change (more than the 5 mm a fast helix is allowed).
+        let text: String = vase(40.0, 0.03, 60)
+            .lines()
+            .map(|l| match l.split_once(" Z") {
+                Some((head, tail)) if tail.contains(" E") => {
+                    let (z, rest) = tail.split_once(' ').unwrap();
+                    let z: f64 = z.parse().unwrap();
+                    format!("{head} Z{z:.3} {rest}\n")
+                }
+                _ => format!("{l}\n"),
+            })
+            .collect();
+        let h = find(text.as_bytes()).unwrap();
+        assert!((h.turns - 60.0).abs() < 0.05, "{h:?}");
+        assert!((h.z_top - h.z0 - 1.8).abs() < 0.01, "{h:?}");
     }
 
     #[test]

@@ -114,3 +114,29 @@ pub fn page(title: &str, report: &Report, center: [f64; 2], bead: Bead) -> Strin
         top = top_svg(report, bead),
     )
 }
+
+/// The pictures of a layer-less file as `poa preview` draws them.
+pub struct Pictures {
+    pub page: String,
+    pub profile: String,
+    pub top: String,
+    pub report: Report,
+}
+
+/// Judges the layer-less print `text` and draws it; `None` when `text` is not one (no
+/// helix: the layered preview applies).
+pub fn layerless(
+    text: &[u8],
+    config: &crate::layers::SlicerConfig,
+    title: &str,
+) -> Option<Pictures> {
+    let helix = crate::helix::find(text).ok()?;
+    let bead = crate::helix::bead_of(config, &helix);
+    let report = crate::helix::printable::check(text, &helix, bead, 20_000);
+    Some(Pictures {
+        page: page(title, &report, helix.center, bead),
+        profile: profile_svg(&report, helix.center, bead),
+        top: top_svg(&report, bead),
+        report,
+    })
+}

@@ -17,7 +17,9 @@
 //!   5 % and 100 % of `h` (+0.03 mm), and **lean** (angle of P - S from the vertical) at most
 //!   85 degrees.
 
-use std::collections::{HashMap, VecDeque};
+use std::collections::VecDeque;
+
+use rustc_hash::FxHashMap as HashMap;
 
 use crate::helix::{moves, Helix};
 
@@ -134,9 +136,16 @@ type Key = (i32, i32, i32);
 struct Grid {
     cell: f64,
     cells: HashMap<Key, Vec<([f64; 3], bool)>>,
-    /// Highest material per fine XY cell (for collisions).
+    /// Highest material per fine XY cell (for collisions). Bounded by the print's
+    /// footprint, not its height.
     tops: HashMap<(i32, i32), f64>,
     fine: f64,
+    /// Lowest Z key still held in `cells`: slabs the helix has risen past are dropped, so
+    /// memory follows one band of turns, not the whole print.
+    floor: i32,
+    /// Highest material of all (a point below it by more than the slack can skip the
+    /// collision search).
+    max_top: f64,
 }
 
 impl Grid {
@@ -158,12 +167,30 @@ impl Grid {
         );
         let t = self.tops.entry(f).or_insert(f64::NEG_INFINITY);
         *t = t.max(p[2]);
+        self.max_top = self.max_top.max(p[2]);
     }
 
-    /// Nearest material point within one cell around `p`.
-    fn nearest(&self, p: [f64; 3]) -> Option<([f64; 3], f64, bool)> {
+    /// Drops the slabs that no point at or above `p` can reach: the helix rises, so a
+    /// later point searches Z keys from `key(p).2 - 1` up. Done every few slabs (a pass
+    /// over the band held).
+    fn rise_to(&mut self, p: [f64; 3]) {
+        let keep = self.key(p).2 - 1;
+        if keep > self.floor + 2 {
+            self.cells.retain(|k, _| k.2 >= keep);
+            // Only material above a later point can collide with it.
+            self.tops.retain(|_, t| *t > p[2]);
+            self.floor = keep;
+        }
+    }
+
+    /// Nearest material point within one cell around `p` (point, distance, on the helix),
+    /// and the highest material within `radius` (at most a cell) horizontally of `p` in
+    /// those cells: what the bead lies on.
+    fn probe(&self, p: [f64; 3], radius: f64) -> (Option<([f64; 3], f64, bool)>, f64) {
         let k = self.key(p);
         let mut best: Option<([f64; 3], f64, bool)> = None;
+        let mut under = f64::NEG_INFINITY;
+        let r2 = radius * radius;
         for dx in -1..=1 {
             for dy in -1..=1 {
                 for dz in -1..=1 {
@@ -171,9 +198,11 @@ impl Grid {
                         continue;
                     };
                     for (q, h) in v {
-                        let d =
-                            ((q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2) + (q[2] - p[2]).powi(2))
-                                .sqrt();
+                        let h2 = (q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2);
+                        if h2 <= r2 {
+                            under = under.max(q[2]);
+                        }
+                        let d = (h2 + (q[2] - p[2]).powi(2)).sqrt();
                         if best.is_none_or(|b| d < b.1) {
                             best = Some((*q, d, *h));
                         }
@@ -181,11 +210,14 @@ impl Grid {
                 }
             }
         }
-        best
+        (best, under)
     }
 
     /// Highest material within `radius` (horizontally) of `p`.
     fn top_near(&self, p: [f64; 3], radius: f64) -> f64 {
+        if self.max_top <= p[2] {
+            return self.max_top;
+        }
         let n = (radius / self.fine).ceil() as i32;
         let (cx, cy) = (
             (p[0] / self.fine).floor() as i32,
@@ -216,9 +248,11 @@ pub fn check(text: &[u8], helix: &Helix, bead: Bead, keep_samples: usize) -> Rep
     let guard = GUARD_WIDTHS * bead.width;
     let mut grid = Grid {
         cell: bead.reach().max(bead.nozzle_radius),
-        cells: HashMap::new(),
-        tops: HashMap::new(),
+        cells: HashMap::default(),
+        tops: HashMap::default(),
         fine: (bead.nozzle_radius / 2.0).max(0.05),
+        floor: i32::MIN,
+        max_top: f64::NEG_INFINITY,
     };
     let mut report = Report {
         turns: helix.turns,
@@ -294,7 +328,8 @@ pub fn check(text: &[u8], helix: &Helix, bead: Bead, keep_samples: usize) -> Rep
             prev_angle = Some(a);
             let turn = angle.abs() / std::f64::consts::TAU;
             report.points += 1;
-            let near = grid.nearest(p);
+            grid.rise_to(p);
+            let (near, under) = grid.probe(p, bead.width / 2.0);
             let mut broken = None;
             let (mut lean, mut lift) = (0.0, 0.0);
             match near {
@@ -302,8 +337,8 @@ pub fn check(text: &[u8], helix: &Helix, bead: Bead, keep_samples: usize) -> Rep
                     let horiz = (p[0] - s[0]).hypot(p[1] - s[1]);
                     lean = horiz.atan2(p[2] - s[2]).to_degrees();
                     // Lift: above the highest earlier material under the bead (within
-                    // half a width); a bead leaning beside the one below has none.
-                    let under = grid.top_near(p, bead.width / 2.0);
+                    // half a width, in the cells around it: a cell is at least a bead
+                    // height); a bead leaning beside the one below has none.
                     lift = if under.is_finite() {
                         p[2] - under
                     } else {

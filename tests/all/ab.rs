@@ -5,20 +5,11 @@ use crate::common;
 use printonair::check::{check_layer, CheckOptions};
 use printonair::layers::{filament_area, Layer, LayerKind};
 
-fn poa() -> std::process::Command {
-    std::process::Command::new(env!("CARGO_BIN_EXE_poa"))
-}
+use crate::common::poa;
 
 /// Runs `poa ab INPUT -o OUT` with `args`.
 fn ab(input: &std::path::Path, out: &std::path::Path, args: &[&str]) -> std::process::Output {
-    poa()
-        .arg("ab")
-        .arg(input)
-        .arg("-o")
-        .arg(out)
-        .args(args)
-        .output()
-        .unwrap()
+    crate::common::poa_to("ab", input, out, args)
 }
 
 /// The layer with only the paths of one object (None: paths of no object).

@@ -11,6 +11,7 @@ mod bgcode_rewrite;
 mod cli;
 mod cura_parts;
 mod cura_script;
+mod deform;
 mod estimate;
 mod faults;
 mod frontend;

@@ -117,8 +117,9 @@ pub enum Command {
     /// Layer-less helical printing: deform a spiral-vase print into a dish, vase, sphere or
     /// your own shape (expressions), checked for printability before it is written.
     Deform(DeformArgs),
-    /// Draw layers as SVG: the layer below, the strands by role, the regions over air.
-    #[command(group(clap::ArgGroup::new("what").required(true).args(["layer", "regions"])))]
+    /// Draw layers as SVG (the layer below, the strands by role, the regions over air), or a
+    /// layer-less print whole (side profile and top view, unsupported points red).
+    #[command(group(clap::ArgGroup::new("what").args(["layer", "regions"])))]
     Preview {
         file: PathBuf,
         /// Draw this layer (1 = first layer) into the SVG file given with -o.
@@ -127,7 +128,9 @@ pub enum Command {
         /// Draw every layer that has regions into the folder given with -o, with an index.html.
         #[arg(long)]
         regions: bool,
-        /// Output: an .svg file with --layer, a folder with --regions.
+        /// Output: an .svg file with --layer, a folder with --regions. A layer-less (helical)
+        /// print is drawn whole: its side profile into an .svg, or a folder with the side
+        /// profile, the top view and an index.html.
         #[arg(short, long, value_name = "PATH")]
         output: PathBuf,
         #[command(flatten)]

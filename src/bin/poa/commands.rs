@@ -121,6 +121,16 @@ pub fn preview(
         path: file.clone(),
         source,
     };
+    if opened.binary.is_none() {
+        let text = input::read_all(&file)?;
+        if let Some(p) = printonair::helix::picture::layerless(&text, &opened.config, &title) {
+            return preview_layerless(&file, &output, &p);
+        }
+    }
+    anyhow::ensure!(
+        regions || layer.is_some(),
+        "say what to draw: --layer N -o FILE.svg (one layer) or --regions -o DIR (every layer with regions)"
+    );
     if regions {
         let previews = preview::preview_regions(opened.reader, opened.config, &opts, &title)
             .map_err(read_err)?;
@@ -336,6 +346,35 @@ pub fn process(
     } else {
         ExitCode::SUCCESS
     })
+}
+
+/// `poa preview` of a layer-less (helical) print: the side profile as `-o FILE.svg`, or a
+/// folder with the HTML page and both pictures.
+fn preview_layerless(
+    file: &Path,
+    output: &Path,
+    p: &printonair::helix::picture::Pictures,
+) -> anyhow::Result<ExitCode> {
+    if output.extension().is_some_and(|e| e == "svg") {
+        write_file(output, &[file], &p.profile)?;
+    } else {
+        check_regions_folder(output, file)?;
+        std::fs::create_dir_all(output).map_err(|source| printonair::Error::Write {
+            path: output.to_path_buf(),
+            source,
+        })?;
+        write_file(&output.join("profile.svg"), &[file], &p.profile)?;
+        write_file(&output.join("top.svg"), &[file], &p.top)?;
+        write_file(&output.join("index.html"), &[file], &p.page)?;
+    }
+    eprintln!(
+        "poa: layer-less print: {} points judged, {} unsupported, {} collisions; wrote {}",
+        p.report.points,
+        p.report.unsupported,
+        p.report.collisions,
+        output.display()
+    );
+    Ok(ExitCode::SUCCESS)
 }
 
 /// `preview --regions -o DIR` writes a folder: refuse a path that is a file, or that names

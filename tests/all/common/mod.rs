@@ -359,3 +359,20 @@ pub fn slice_cura(stl: &Path, machine: &str, settings: &[&str]) -> Option<Vec<u8
     );
     Some(std::fs::read(&out).unwrap())
 }
+
+/// The `poa` binary under test.
+pub fn poa() -> std::process::Command {
+    std::process::Command::new(env!("CARGO_BIN_EXE_poa"))
+}
+
+/// Runs `poa COMMAND INPUT -o OUT ARGS...`.
+pub fn poa_to(command: &str, input: &Path, out: &Path, args: &[&str]) -> std::process::Output {
+    poa()
+        .arg(command)
+        .arg(input)
+        .arg("-o")
+        .arg(out)
+        .args(args)
+        .output()
+        .unwrap()
+}
