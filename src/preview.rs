@@ -14,7 +14,7 @@ use std::io::{self, BufRead};
 use geo::{BoundingRect, LineString, MultiPolygon, Polygon};
 
 use crate::geometry::{self, DetectOptions, Region, RegionKind};
-use crate::layers::{Layer, LayerKind, LayerReader, ReaderOptions, Role, SlicerConfig};
+use crate::layers::{Layer, LayerKind, LayerReader, Path, ReaderOptions, Role, SlicerConfig};
 
 /// What to draw.
 pub struct Scene<'a> {
@@ -25,6 +25,70 @@ pub struct Scene<'a> {
     pub regions: &'a [(usize, &'a Region)],
     /// Deposition check samples to mark (bridged and in-air ones), from `poa check`.
     pub samples: &'a [crate::check::Sample],
+    /// Line ranges of the blocks poa wrote ([`poa_blocks`]): their strands are drawn in
+    /// poa's colour, shaded by order.
+    pub poa_blocks: &'a [(u64, u64)],
+}
+
+/// Line ranges (first, last, inclusive) of the blocks poa wrote in `layer`
+/// (`;POA_BEGIN` .. `;POA_END`), read from its raw bytes (empty without `keep_raw`).
+pub fn poa_blocks(layer: &Layer) -> Vec<(u64, u64)> {
+    let mut v = Vec::new();
+    let mut open = None;
+    for (i, line) in layer.raw.split(|&b| b == b'\n').enumerate() {
+        let n = layer.first_line + i as u64;
+        if line.starts_with(b";POA_BEGIN") {
+            open = Some(n);
+        } else if line.starts_with(b";POA_END") {
+            if let Some(first) = open.take() {
+                v.push((first, n));
+            }
+        }
+    }
+    v
+}
+
+/// poa's loops: darkest first (at the supported edge), lightest last (outermost).
+const POA_FIRST: [u8; 3] = [0x49, 0x00, 0x6a];
+const POA_LAST: [u8; 3] = [0xf7, 0x68, 0xa1];
+
+/// Colour of the `k`-th of `n` strands of a poa block.
+fn poa_shade(k: usize, n: usize) -> String {
+    let t = if n > 1 {
+        k as f64 / (n - 1) as f64
+    } else {
+        0.0
+    };
+    let c: Vec<u8> = (0..3)
+        .map(|i| {
+            (POA_FIRST[i] as f64 + (POA_LAST[i] as f64 - POA_FIRST[i] as f64) * t).round() as u8
+        })
+        .collect();
+    format!("#{:02x}{:02x}{:02x}", c[0], c[1], c[2])
+}
+
+/// For each path of `layer`: `Some((k, n))` when it is the `k`-th of the `n` strands of a
+/// poa block.
+fn poa_order(layer: &Layer, blocks: &[(u64, u64)]) -> Vec<Option<(usize, usize)>> {
+    let block_of = |p: &Path| {
+        let line = *p.seg_line.first()?;
+        blocks.iter().position(|(a, b)| (*a..=*b).contains(&line))
+    };
+    let which: Vec<Option<usize>> = layer.paths.iter().map(block_of).collect();
+    let mut seen = vec![0usize; blocks.len()];
+    let mut count = vec![0usize; blocks.len()];
+    for b in which.iter().flatten() {
+        count[*b] += 1;
+    }
+    which
+        .iter()
+        .map(|b| {
+            b.map(|b| {
+                seen[b] += 1;
+                (seen[b] - 1, count[b])
+            })
+        })
+        .collect()
 }
 
 /// Colour of a role; close to the slicer previews users know.
@@ -212,7 +276,8 @@ pub fn render(scene: &Scene<'_>) -> String {
         s,
         r#"<g fill="none" stroke-linecap="round" stroke-linejoin="round" stroke-opacity="0.9">"#
     );
-    for p in &scene.layer.paths {
+    let order = poa_order(scene.layer, scene.poa_blocks);
+    for (p, order) in scene.layer.paths.iter().zip(&order) {
         if p.points.len() < 2 {
             continue;
         }
@@ -226,10 +291,13 @@ pub fn render(scene: &Scene<'_>) -> String {
                 ty(q[1])
             );
         }
+        let colour = match order {
+            Some((k, n)) => poa_shade(*k, *n),
+            None => role_color(p.role).to_string(),
+        };
         let _ = writeln!(
             s,
-            r#"<path d="{d}" stroke="{}" stroke-width="{:.3}"/>"#,
-            role_color(p.role),
+            r#"<path d="{d}" stroke="{colour}" stroke-width="{:.3}"/>"#,
             p.width.clamp(0.05, 5.0)
         );
     }
@@ -293,7 +361,7 @@ pub fn render(scene: &Scene<'_>) -> String {
 
 fn legend_height(scene: &Scene<'_>) -> f64 {
     let roles = roles_present(scene).len() as f64;
-    12.0 + 3.0 * (roles + 4.0)
+    12.0 + 3.0 * (roles + 5.0)
 }
 
 fn roles_present(scene: &Scene<'_>) -> Vec<Role> {
@@ -367,6 +435,19 @@ fn legend(s: &mut String, scene: &Scene<'_>, x: f64, top: f64) {
             role_color(role),
             x + 5.0,
             role.name()
+        );
+    }
+    if !scene.poa_blocks.is_empty() {
+        y += line;
+        let (first, last) = (poa_shade(0, 2), poa_shade(1, 2));
+        let _ = writeln!(
+            s,
+            r#"<line x1="{x:.2}" y1="{a:.2}" x2="{:.2}" y2="{a:.2}" stroke="{first}" stroke-width="0.9" stroke-linecap="round"/><line x1="{:.2}" y1="{a:.2}" x2="{:.2}" y2="{a:.2}" stroke="{last}" stroke-width="0.9" stroke-linecap="round"/><text x="{:.2}" y="{y:.2}">poa loops, first to last</text>"#,
+            x + 2.0,
+            x + 2.0,
+            x + 4.0,
+            x + 5.0,
+            a = y - 0.6,
         );
     }
     let _ = writeln!(s, "</g>");
@@ -538,7 +619,8 @@ pub fn preview_layer<R: BufRead + Send>(
     let reader = LayerReader::new(
         input,
         ReaderOptions {
-            keep_raw: false,
+            // The raw lines tell poa's blocks apart (drawn in poa's colour).
+            keep_raw: true,
             config,
         },
     );
@@ -564,6 +646,7 @@ pub fn preview_layer<R: BufRead + Send>(
                 below: d.below.as_ref().unwrap_or(&geometry::NO_AREA),
                 regions: &numbered,
                 samples: &[],
+                poa_blocks: &poa_blocks(&d.layer),
             }));
             // Stop reading once the layer is drawn: the rest of the file does not matter.
             return Err(io::Error::other(Drawn));
@@ -590,7 +673,8 @@ pub fn preview_regions<R: BufRead + Send>(
     let reader = LayerReader::new(
         input,
         ReaderOptions {
-            keep_raw: false,
+            // The raw lines tell poa's blocks apart (drawn in poa's colour).
+            keep_raw: true,
             config,
         },
     );
@@ -612,6 +696,7 @@ pub fn preview_regions<R: BufRead + Send>(
             below: d.below.as_ref().unwrap_or(&geometry::NO_AREA),
             regions: &numbered,
             samples: &[],
+            poa_blocks: &poa_blocks(&d.layer),
         });
         for (id, r) in &numbered {
             rows.push(IndexRow {
@@ -645,7 +730,8 @@ pub fn check_layer_svg<R: BufRead>(
     let reader = LayerReader::new(
         input,
         ReaderOptions {
-            keep_raw: false,
+            // The raw lines tell poa's blocks apart (drawn in poa's colour).
+            keep_raw: true,
             config,
         },
     );
@@ -667,9 +753,208 @@ pub fn check_layer_svg<R: BufRead>(
                 below: &area,
                 regions: &[],
                 samples: &c.samples,
+                poa_blocks: &poa_blocks(&layer),
             })));
         }
         below = Some(layer);
     }
     Ok(None)
+}
+
+/// At most this many layer pairs go into a compare page (each holds two SVGs).
+pub const COMPARE_MAX_LAYERS: usize = 200;
+
+/// One layer of a compare page.
+struct ComparedLayer {
+    number: usize,
+    z: f64,
+    in_air: [f64; 2],
+    bridged: [f64; 2],
+    svg: [String; 2],
+}
+
+/// The layers of `input` (not the start and end blocks), with their raw lines.
+fn print_layers<R: BufRead>(
+    input: R,
+    config: SlicerConfig,
+) -> impl Iterator<Item = io::Result<Layer>> {
+    LayerReader::new(
+        input,
+        ReaderOptions {
+            keep_raw: true,
+            config,
+        },
+    )
+    .filter(|l| !matches!(l, Ok(l) if l.kind != LayerKind::Layer))
+}
+
+/// Whether two layers print the same strands.
+fn same_strands(a: &Layer, b: &Layer) -> bool {
+    a.paths.len() == b.paths.len()
+        && a.paths
+            .iter()
+            .zip(&b.paths)
+            .all(|(p, q)| p.role == q.role && p.points == q.points && p.seg_e == q.seg_e)
+}
+
+/// `poa preview --compare ORIGINAL FILE`: one HTML page with a layer slider showing, side by
+/// side, each layer where the two files differ (and the layer above each, which stands on
+/// it), with the deposition check's bridged and in-air points marked and poa's loops shaded
+/// by order. At most [`COMPARE_MAX_LAYERS`] layers (the page says when more differ).
+///
+/// Long by design: one lock-step walk over both files that keeps the layer below of each
+/// and draws a pair where needed; the drawing is [`render`].
+pub fn compare_page<A: BufRead, B: BufRead>(
+    original: A,
+    original_config: SlicerConfig,
+    file: B,
+    file_config: SlicerConfig,
+    names: [&str; 2],
+    opts: &crate::check::CheckOptions,
+) -> io::Result<String> {
+    let fa = [
+        crate::layers::filament_area(original_config.filament_diameter()),
+        crate::layers::filament_area(file_config.filament_diameter()),
+    ];
+    let mut a = print_layers(original, original_config);
+    let mut b = print_layers(file, file_config);
+    let mut below: [Option<Layer>; 2] = [None, None];
+    let mut pages: Vec<ComparedLayer> = Vec::new();
+    let (mut differing, mut layers) = (0usize, 0usize);
+    let mut above_changed = false;
+    while let (Some(la), Some(lb)) = (a.next(), b.next()) {
+        let (la, lb) = (la?, lb?);
+        layers += 1;
+        let changed = !same_strands(&la, &lb);
+        differing += changed as usize;
+        if (changed || above_changed) && pages.len() < COMPARE_MAX_LAYERS {
+            let pair = [&la, &lb];
+            let mut in_air = [0.0; 2];
+            let mut bridged = [0.0; 2];
+            let mut svg = [String::new(), String::new()];
+            for i in 0..2 {
+                let c = crate::check::check_layer(below[i].as_ref(), pair[i], fa[i], opts, true);
+                in_air[i] = c.in_air_mm;
+                bridged[i] = c.bridged_mm;
+                let area = below[i]
+                    .as_ref()
+                    .map(|l| geometry::printed_area(l, &geometry::AreaOptions::default()))
+                    .unwrap_or_else(|| MultiPolygon::new(Vec::new()));
+                svg[i] = render(&Scene {
+                    title: names[i],
+                    layer: pair[i],
+                    below: &area,
+                    regions: &[],
+                    samples: &c.samples,
+                    poa_blocks: &poa_blocks(pair[i]),
+                });
+            }
+            pages.push(ComparedLayer {
+                number: la.index + 1,
+                z: la.z,
+                in_air,
+                bridged,
+                svg,
+            });
+        }
+        above_changed = changed;
+        below = [Some(la), Some(lb)];
+    }
+    Ok(compare_html(names, &pages, differing, layers))
+}
+
+fn compare_html(
+    names: [&str; 2],
+    pages: &[ComparedLayer],
+    differing: usize,
+    layers: usize,
+) -> String {
+    let mut s = String::new();
+    let (a, b) = (escape(names[0]), escape(names[1]));
+    let _ = writeln!(
+        s,
+        r#"<!doctype html>
+<html lang="en"><head><meta charset="utf-8"><title>poa compare: {a} / {b}</title>
+<style>
+body {{ font-family: Helvetica, Arial, sans-serif; margin: 1em; }}
+.controls {{ position: sticky; top: 0; background: white; padding: .4em 0; }}
+.controls input {{ width: 50%; vertical-align: middle; }}
+.pair {{ display: flex; gap: 1em; }}
+.pair[hidden] {{ display: none; }}
+figure {{ flex: 1; margin: 0; }}
+figure svg {{ width: 100%; height: auto; border: 1px solid #ddd; }}
+.worse {{ color: #d7191c; font-weight: bold; }}
+</style></head><body>
+<h1>{a} (left) and {b} (right)</h1>"#
+    );
+    let more = if pages.len() < differing {
+        format!(" (the first {} are shown)", pages.len())
+    } else {
+        String::new()
+    };
+    let _ = writeln!(
+        s,
+        "<p id=\"summary\">{differing} of {layers} layers differ{more}; each is shown with the layer above it. Marked points are the deposition check's: amber bridged, red in air. poa's loops are purple, lighter the later they print.</p>"
+    );
+    if pages.is_empty() {
+        s.push_str("<p>The two files print the same strands on every layer.</p>\n");
+    }
+    let _ = writeln!(
+        s,
+        r#"<div class="controls"><button id="prev" type="button">&#9664;</button> <input id="layer" type="range" min="0" max="{}" value="0" aria-label="layer"> <button id="next" type="button">&#9654;</button> <span id="label"></span></div>"#,
+        pages.len().saturating_sub(1)
+    );
+    for p in pages {
+        let worse = p.in_air[1] > p.in_air[0] + 0.5;
+        let _ = writeln!(
+            s,
+            r#"<div class="pair" data-layer="{n}" data-z="{z:.3}" data-in-air="{a0:.1} {a1:.1}" hidden>
+<figure><figcaption>{a}: layer {n} at Z {z:.2}: {a0:.1} mm in air, {b0:.1} mm bridged</figcaption>
+{s0}</figure>
+<figure><figcaption{cls}>{b}: layer {n} at Z {z:.2}: {a1:.1} mm in air, {b1:.1} mm bridged</figcaption>
+{s1}</figure></div>"#,
+            n = p.number,
+            z = p.z,
+            a0 = p.in_air[0],
+            a1 = p.in_air[1],
+            b0 = p.bridged[0],
+            b1 = p.bridged[1],
+            s0 = p.svg[0],
+            s1 = p.svg[1],
+            cls = if worse { r#" class="worse""# } else { "" },
+        );
+    }
+    s.push_str(
+        r#"<script>
+(function () {
+  var pairs = Array.prototype.slice.call(document.querySelectorAll('.pair'));
+  var slider = document.getElementById('layer');
+  var label = document.getElementById('label');
+  function show(k) {
+    if (!pairs.length) { return; }
+    k = Math.max(0, Math.min(pairs.length - 1, k));
+    slider.value = k;
+    pairs.forEach(function (p, i) { p.hidden = i !== k; });
+    var p = pairs[k];
+    var air = p.dataset.inAir.split(' ');
+    label.textContent = 'layer ' + p.dataset.layer + ' at Z ' + p.dataset.z + ' mm: in air ' + air[0] + ' -> ' + air[1] + ' mm';
+    document.body.dataset.shown = p.dataset.layer;
+  }
+  slider.addEventListener('input', function () { show(+slider.value); });
+  document.getElementById('prev').addEventListener('click', function () { show(+slider.value - 1); });
+  document.getElementById('next').addEventListener('click', function () { show(+slider.value + 1); });
+  document.addEventListener('keydown', function (e) {
+    if (e.key === 'ArrowLeft') { show(+slider.value - 1); }
+    if (e.key === 'ArrowRight') { show(+slider.value + 1); }
+  });
+  var want = new URLSearchParams(location.search).get('layer');
+  var start = pairs.findIndex(function (p) { return p.dataset.layer === want; });
+  show(start < 0 ? 0 : start);
+  document.body.dataset.ready = '1';
+})();
+</script>
+</body></html>
+"#,
+    );
+    s
 }

@@ -9,6 +9,7 @@ mod ab;
 mod bgcode;
 mod bgcode_rewrite;
 mod cli;
+mod compare_page;
 mod cura_parts;
 mod cura_script;
 mod deform;

@@ -119,16 +119,21 @@ pub enum Command {
     Deform(DeformArgs),
     /// Draw layers as SVG (the layer below, the strands by role, the regions over air), or a
     /// layer-less print whole (side profile and top view, unsupported points red).
-    #[command(group(clap::ArgGroup::new("what").args(["layer", "regions"])))]
+    #[command(group(clap::ArgGroup::new("what").args(["layer", "regions", "compare"])))]
     Preview {
         file: PathBuf,
+        /// Compare with ORIGINAL: one HTML page in the folder given with -o, a layer slider
+        /// showing both files' layers side by side wherever they differ (and the layer above),
+        /// in-air points marked.
+        #[arg(long, value_name = "ORIGINAL")]
+        compare: Option<PathBuf>,
         /// Draw this layer (1 = first layer) into the SVG file given with -o.
         #[arg(long, value_name = "N")]
         layer: Option<usize>,
         /// Draw every layer that has regions into the folder given with -o, with an index.html.
         #[arg(long)]
         regions: bool,
-        /// Output: an .svg file with --layer, a folder with --regions. A layer-less (helical)
+        /// Output: an .svg file with --layer, a folder with --regions or --compare. A layer-less (helical)
         /// print is drawn whole: its side profile into an .svg, or a folder with the side
         /// profile, the top view and an index.html.
         #[arg(short, long, value_name = "PATH")]

@@ -348,6 +348,40 @@ pub fn process(
     })
 }
 
+/// `poa preview --compare ORIGINAL FILE -o DIR`: the side-by-side page in `DIR/index.html`.
+pub fn preview_compare(original: &Path, file: &Path, output: &Path) -> anyhow::Result<ExitCode> {
+    check_regions_folder(output, file)?;
+    output::check_not_input(output, &[original])?;
+    let a = input::open(original)?;
+    let b = input::open(file)?;
+    let name = |p: &Path| {
+        p.file_name()
+            .map(|n| n.to_string_lossy().to_string())
+            .unwrap_or_default()
+    };
+    let (na, nb) = (name(original), name(file));
+    let page = preview::compare_page(
+        a.reader,
+        a.config,
+        b.reader,
+        b.config,
+        [&na, &nb],
+        &printonair::check::CheckOptions::default(),
+    )
+    .map_err(|source| printonair::Error::Read {
+        path: file.to_path_buf(),
+        source,
+    })?;
+    std::fs::create_dir_all(output).map_err(|source| printonair::Error::Write {
+        path: output.to_path_buf(),
+        source,
+    })?;
+    let index = output.join("index.html");
+    write_file(&index, &[original, file], &page)?;
+    eprintln!("poa: open {}", index.display());
+    Ok(ExitCode::SUCCESS)
+}
+
 /// `poa preview` of a layer-less (helical) print: the side profile as `-o FILE.svg`, or a
 /// folder with the HTML page and both pictures.
 fn preview_layerless(

@@ -144,10 +144,17 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Deform(args) => commands::deform(args),
         Command::Preview {
             file,
+            compare: Some(original),
+            output,
+            ..
+        } => commands::preview_compare(&original, &file, &output),
+        Command::Preview {
+            file,
             layer,
             regions,
             output,
             detect,
+            ..
         } => commands::preview(file, layer, regions, output, detect),
     }
 }
