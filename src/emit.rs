@@ -75,6 +75,9 @@ pub struct RewriteStats {
     pub z: f64,
     pub loops: usize,
     pub strands: usize,
+    /// A gradual overhang: its external perimeter moved to bite into the layer below (with
+    /// a half-width loop under it where it would hang farther).
+    pub gradual: bool,
     /// Length of the strands poa wrote (mm).
     pub written_length_mm: f64,
     pub written_filament_mm: f64,
@@ -181,6 +184,7 @@ pub fn rewrite_layer(
             z: layer.z,
             loops: r.plan.loops,
             strands: r.plan.strands.len(),
+            gradual: r.plan.with_perimeter,
             ..Default::default()
         })
         .collect();
@@ -786,6 +790,9 @@ pub struct ProcessReport {
     pub skipped: Vec<SkippedRegion>,
     pub rewrites: Vec<RewriteStats>,
     pub loops: usize,
+    /// Of the regions rewritten, gradual overhangs (their perimeter moved onto the layer
+    /// below, see [`RewriteStats::gradual`]).
+    pub gradual: usize,
     pub filament_added_mm: f64,
     pub filament_added_cm3: f64,
     pub filament_added_g: f64,
@@ -1028,6 +1035,7 @@ impl<'a> PoaPass<'a> {
         for s in stats {
             report.regions_rewritten += 1;
             report.loops += s.loops;
+            report.gradual += usize::from(s.gradual);
             report.filament_added_mm += s.written_filament_mm - s.removed_filament_mm;
             report.time_added_s += s.time_added_s;
             report.rewrites.push(s);

@@ -62,12 +62,19 @@ pub fn summary_line(
         );
     };
     format!(
-        "{}: {} region{} found, {} rewritten with {} loops; filament {:+.1} mm, time {:+.0} s{}\n",
+        "{}: {} region{} found, {} rewritten with {} loops{}; filament {:+.1} mm, time {:+.0} s{}\n",
         file.display(),
         r.regions_found,
         if r.regions_found == 1 { "" } else { "s" },
         r.regions_rewritten,
         r.loops,
+        match r.gradual {
+            0 => String::new(),
+            n => format!(
+                " ({n} gradual overhang{} with the perimeter moved onto the layer below)",
+                if n == 1 { "" } else { "s" }
+            ),
+        },
         r.filament_added_mm,
         r.time_added_s,
         if dry_run {
@@ -83,11 +90,16 @@ pub fn verbose_lines(report: &ProcessReport) -> String {
     let mut t = String::new();
     for s in &report.rewrites {
         t.push_str(&format!(
-            "poa: region {} on layer {} (Z {:.2}): {} loops, {} strands, {:.0} mm written, {:.0} mm taken out, filament {:+.1} mm, time {:+.0} s\n",
+            "poa: region {} on layer {} (Z {:.2}): {} loops{}, {} strands, {:.0} mm written, {:.0} mm taken out, filament {:+.1} mm, time {:+.0} s\n",
             s.region,
             s.layer,
             s.z,
             s.loops,
+            if s.gradual {
+                " + perimeter moved onto the layer below"
+            } else {
+                ""
+            },
             s.strands,
             s.written_length_mm,
             s.removed_length_mm,
