@@ -146,12 +146,26 @@ pub fn plan(
     let region_mp = MultiPolygon::new(vec![region.polygon.clone()]);
     let hint = offset(&region_mp, widths.tolerance + w);
     // Booleans with a whole plate's layer cost as much as the plate: take the parts near by.
-    let (below, area) = match geo::BoundingRect::bounding_rect(&hint) {
-        Some(b) => (near(below, &b, reach + w), near(area, &b, 2.0 * we + 2.0)),
-        None => (MultiPolygon::new(Vec::new()), MultiPolygon::new(Vec::new())),
+    // Cut to boxes round the region, not to its offsets: an offset by the region's reach
+    // (12 mm on a mushroom's cap) makes thousands of arc points for a boolean to chew, and
+    // nothing past the reach takes part (the fronts are cut to near the zone, the zone to
+    // `hint`).
+    let Some(hint_box) = geo::BoundingRect::bounding_rect(&hint) else {
+        return Plan {
+            zone: MultiPolygon::new(Vec::new()),
+            strands: Vec::new(),
+            loops: 0,
+            with_perimeter: false,
+        };
     };
-    let below_loc = intersection(&below, &offset(&hint, reach + w));
-    let area_loc = intersection(&area, &offset(&hint, 2.0 * we + 2.0));
+    let below_loc = intersection(
+        &near(below, &hint_box, reach + w),
+        &boxed(&hint_box, reach + w),
+    );
+    let area_loc = intersection(
+        &near(area, &hint_box, 2.0 * we + 2.0),
+        &boxed(&hint_box, 2.0 * we + 2.0),
+    );
 
     // The zone: what sectB prints beyond sectA around this region, slivers dropped.
     let zone = opening(
@@ -404,6 +418,16 @@ impl Shape {
             })
             .collect()
     }
+}
+
+/// `rect` grown by `margin` on every side, as a polygon.
+fn boxed(rect: &geo::Rect<f64>, margin: f64) -> MultiPolygon<f64> {
+    let (lo, hi) = (rect.min(), rect.max());
+    MultiPolygon::new(vec![geo::Rect::new(
+        geo::coord! {x: lo.x - margin, y: lo.y - margin},
+        geo::coord! {x: hi.x + margin, y: hi.y + margin},
+    )
+    .to_polygon()])
 }
 
 fn dist2(a: [f64; 2], b: [f64; 2]) -> f64 {
