@@ -38,6 +38,7 @@ pub mod progress;
 pub mod report;
 pub mod rewrite;
 pub mod settings;
+pub mod texture;
 pub mod writer;
 
 pub use error::Error;

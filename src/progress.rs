@@ -198,6 +198,105 @@ fn progress_line(
     Some(line)
 }
 
+/// Print time (s) at each `M73` line of `text` (by byte offset, in order) and in all, and the
+/// net filament (mm), by poa's estimator.
+pub fn progress_times(
+    text: &[u8],
+    limits: &crate::estimate::Limits,
+) -> (Vec<(u64, f64)>, f64, f64) {
+    use crate::machine::{Action, Machine};
+    let mut est = crate::estimate::Estimator::new(limits.clone());
+    let mut machine = Machine::new();
+    let mut at = Vec::new();
+    let mut filament = 0.0;
+    let mut offset = 0u64;
+    for raw in crate::gcode::split_lines(text) {
+        let parsed = parse_line(strip_terminator(raw));
+        let action = machine.step(&parsed, 0);
+        if let Action::Move(m) = &action {
+            filament += m.e;
+        }
+        est.line(&parsed, &action);
+        if matches!(parsed.command, Command::Code { letter: b'M', number } if number == 73.0) {
+            at.push((offset, est.clone().finish().0));
+        }
+        offset += raw.len() as u64;
+    }
+    (at, est.finish().0, filament)
+}
+
+/// A whole-file transform's output with its progress lines and footer brought up to date.
+pub struct Refreshed {
+    pub text: Vec<u8>,
+    /// Print time (s) and net filament (mm) of the input and of the output, by poa's
+    /// estimator.
+    pub time_in: f64,
+    pub time_out: f64,
+    pub filament_in: f64,
+    pub filament_out: f64,
+}
+
+/// Updates the `M73` lines and the statistics footer of `mapped`, a whole-file transform of
+/// `input` that keeps its lines outside the moves it changed (a deformation, a texture): the
+/// estimator's difference between input and output at each `M73` is added to the slicer's
+/// own numbers, and the footer gets the time and filament added.
+pub fn refresh(
+    input: &[u8],
+    mapped: Vec<u8>,
+    config: &crate::config::SlicerConfig,
+) -> Result<Refreshed, crate::error::Error> {
+    let limits = crate::estimate::Limits::from_config(config);
+    let (t_in, time_in, filament_in) = progress_times(input, &limits);
+    let (t_out, time_out, filament_out) = progress_times(&mapped, &limits);
+    let mut added = Vec::with_capacity(t_out.len() + 1);
+    let mut before = 0.0;
+    for (k, (off, t)) in t_out.iter().enumerate() {
+        let d = t - t_in.get(k).map_or(*t, |x| x.1);
+        added.push(Added {
+            offset: *off,
+            seconds: d - before,
+        });
+        before = d;
+    }
+    added.push(Added {
+        offset: mapped.len() as u64,
+        seconds: (time_out - time_in) - before,
+    });
+    let time = |k: &str| config.get(k).and_then(crate::estimate::parse_dhms);
+    let totals = Totals {
+        normal: time("estimated_printing_time"),
+        silent: time("estimated_printing_time_silent"),
+    };
+    let mut fixed = Vec::with_capacity(mapped.len());
+    update(&mapped[..], &mut fixed, &added, totals).map_err(|e| {
+        crate::error::Error::Refused(format!("cannot update the progress lines: {e}"))
+    })?;
+    // The footer: the last 64 KiB, from a line start.
+    let footer = fixed.len().saturating_sub(64 * 1024);
+    let footer = fixed[footer..]
+        .iter()
+        .position(|&b| b == b'\n')
+        .map_or(0, |i| footer + i + 1)
+        .min(fixed.len());
+    let footer = if fixed.len() <= 64 * 1024 { 0 } else { footer };
+    let tail = crate::emit::update_footer(
+        &fixed[footer..],
+        filament_out - filament_in,
+        time_out - time_in,
+        crate::layers::filament_area(config.filament_diameter()),
+        config.filament_density(),
+    );
+    fixed.truncate(footer);
+    fixed.extend_from_slice(&tail);
+    Ok(Refreshed {
+        text: fixed,
+        time_in,
+        time_out,
+        filament_in,
+        filament_out,
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -361,31 +361,11 @@ pub fn deform_file(
     force: bool,
     preview: Option<&Path>,
 ) -> Result<DeformOutcome> {
-    output::check_not_input(out, &[file])?;
-    if let Some(dir) = preview {
-        output::check_not_input(dir, &[file])?;
-    }
-    let mut opened = input::open(file)?;
-    if opened.binary.is_some() {
-        return Err(Error::Invalid(format!(
-            "{} is binary G-code; convert it to text first (`poa convert {} vase.gcode`)",
-            file.display(),
-            file.display()
-        )));
-    }
-    let mut text = Vec::new();
-    opened
-        .reader
-        .read_to_end(&mut text)
-        .map_err(|source| Error::Read {
-            path: file.to_path_buf(),
-            source,
-        })?;
-    let deformed =
-        crate::helix::deform_text(&text, &opened.config, spec, force).map_err(|e| match e {
-            Error::Refused(m) => Error::Refused(format!("{}: {m}", file.display())),
-            other => other,
-        })?;
+    let (text, config) = whole_text(file, out, preview)?;
+    let deformed = crate::helix::deform_text(&text, &config, spec, force).map_err(|e| match e {
+        Error::Refused(m) => Error::Refused(format!("{}: {m}", file.display())),
+        other => other,
+    })?;
     output::write_bytes(out, &[file], &deformed.text)?;
     if let Some(dir) = preview {
         std::fs::create_dir_all(dir).map_err(|source| Error::Write {
@@ -409,6 +389,78 @@ pub fn deform_file(
     }
     Ok(DeformOutcome {
         deformed,
+        bytes_in: text.len() as u64,
+    })
+}
+
+/// A whole-file transform's input, read whole as text with its config, once its outputs
+/// (`out`, and the folder `preview`) are known not to be the input. Binary G-code is refused
+/// with the command that converts it.
+fn whole_text(
+    file: &Path,
+    out: &Path,
+    preview: Option<&Path>,
+) -> Result<(Vec<u8>, crate::config::SlicerConfig)> {
+    output::check_not_input(out, &[file])?;
+    if let Some(dir) = preview {
+        output::check_not_input(dir, &[file])?;
+    }
+    let mut opened = input::open(file)?;
+    if opened.binary.is_some() {
+        return Err(Error::Invalid(format!(
+            "{} is binary G-code; convert it to text first (`poa convert {} text.gcode`)",
+            file.display(),
+            file.display()
+        )));
+    }
+    let mut text = Vec::new();
+    opened
+        .reader
+        .read_to_end(&mut text)
+        .map_err(|source| Error::Read {
+            path: file.to_path_buf(),
+            source,
+        })?;
+    Ok((text, opened.config))
+}
+
+/// What `poa texture` did.
+pub struct TextureOutcome {
+    pub textured: crate::texture::Textured,
+    pub bytes_in: u64,
+}
+
+/// `poa texture`: `file` textured by `spec` into `out` (atomically, never onto the input);
+/// `preview` is a folder for the HTML page of the texture and the bead widths it makes.
+pub fn texture_file(
+    file: &Path,
+    out: &Path,
+    spec: &crate::texture::Spec,
+    preview: Option<&Path>,
+) -> Result<TextureOutcome> {
+    let (text, config) = whole_text(file, out, preview)?;
+    let textured = crate::texture::texture_text(&text, &config, spec).map_err(|e| match e {
+        Error::Invalid(m) => Error::Invalid(format!("{}: {m}", file.display())),
+        other => other,
+    })?;
+    output::write_bytes(out, &[file], &textured.text)?;
+    if let Some(dir) = preview {
+        std::fs::create_dir_all(dir).map_err(|source| Error::Write {
+            path: dir.to_path_buf(),
+            source,
+        })?;
+        let fa = crate::layers::filament_area(config.filament_diameter());
+        let title = format!(
+            "poa texture: {}",
+            file.file_name()
+                .map(|f| f.to_string_lossy().to_string())
+                .unwrap_or_default()
+        );
+        let page = crate::texture::preview_page(&textured, spec, fa, &title);
+        output::write_bytes(&dir.join("index.html"), &[file, out], page.as_bytes())?;
+    }
+    Ok(TextureOutcome {
+        textured,
         bytes_in: text.len() as u64,
     })
 }

@@ -266,33 +266,6 @@ pub fn bead_of(config: &crate::layers::SlicerConfig, helix: &Helix) -> printable
     }
 }
 
-/// Print time (s) at each `M73` line of `text` (in order) and in all, and the net filament
-/// (mm), by poa's estimator.
-pub fn progress_times(
-    text: &[u8],
-    limits: &crate::estimate::Limits,
-) -> (Vec<(u64, f64)>, f64, f64) {
-    use crate::gcode::Command;
-    let mut est = crate::estimate::Estimator::new(limits.clone());
-    let mut machine = Machine::new();
-    let mut at = Vec::new();
-    let mut filament = 0.0;
-    let mut offset = 0u64;
-    for raw in split_lines(text) {
-        let parsed = parse_line(strip_terminator(raw));
-        let action = machine.step(&parsed, 0);
-        if let Action::Move(m) = &action {
-            filament += m.e;
-        }
-        est.line(&parsed, &action);
-        if matches!(parsed.command, Command::Code { letter: b'M', number } if number == 73.0) {
-            at.push((offset, est.clone().finish().0));
-        }
-        offset += raw.len() as u64;
-    }
-    (at, est.finish().0, filament)
-}
-
 /// What [`deform_text`] made.
 pub struct Deformed {
     pub text: Vec<u8>,
@@ -338,59 +311,17 @@ pub fn deform_text(
             "the deformation is not printable: {f}; change it, or give --force to write it anyway"
         )));
     }
-    // Progress lines and footer: the estimator's difference between input and output at
-    // each M73, added to the slicer's own numbers.
-    let limits = crate::estimate::Limits::from_config(config);
-    let (t_in, time_in, filament_in) = progress_times(text, &limits);
-    let (t_out, time_out, filament_out) = progress_times(&mapped, &limits);
-    let mut added = Vec::with_capacity(t_out.len() + 1);
-    let mut before = 0.0;
-    for (k, (off, t)) in t_out.iter().enumerate() {
-        let d = t - t_in.get(k).map_or(*t, |x| x.1);
-        added.push(crate::progress::Added {
-            offset: *off,
-            seconds: d - before,
-        });
-        before = d;
-    }
-    added.push(crate::progress::Added {
-        offset: mapped.len() as u64,
-        seconds: (time_out - time_in) - before,
-    });
-    let time = |k: &str| config.get(k).and_then(crate::estimate::parse_dhms);
-    let totals = crate::progress::Totals {
-        normal: time("estimated_printing_time"),
-        silent: time("estimated_printing_time_silent"),
-    };
-    let mut fixed = Vec::with_capacity(mapped.len());
-    crate::progress::update(&mapped[..], &mut fixed, &added, totals)
-        .map_err(|e| Error::Refused(format!("cannot update the progress lines: {e}")))?;
-    let footer = fixed.len().saturating_sub(64 * 1024);
-    let footer = fixed[footer..]
-        .iter()
-        .position(|&b| b == b'\n')
-        .map_or(0, |i| footer + i + 1)
-        .min(fixed.len());
-    let footer = if fixed.len() <= 64 * 1024 { 0 } else { footer };
-    let tail = crate::emit::update_footer(
-        &fixed[footer..],
-        filament_out - filament_in,
-        time_out - time_in,
-        fa,
-        config.filament_density(),
-    );
-    fixed.truncate(footer);
-    fixed.extend_from_slice(&tail);
+    let done = crate::progress::refresh(text, mapped, config)?;
     Ok(Deformed {
-        text: fixed,
+        text: done.text,
         helix,
         helix_out,
         check,
         bead,
-        time_in,
-        time_out,
-        filament_in,
-        filament_out,
+        time_in: done.time_in,
+        time_out: done.time_out,
+        filament_in: done.filament_in,
+        filament_out: done.filament_out,
         lines_rewritten: stats.rewritten,
         pieces: map.pieces,
     })

@@ -25,3 +25,4 @@ mod regions;
 mod rewrite;
 mod safety;
 mod slicer_mode;
+mod texture;

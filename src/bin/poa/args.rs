@@ -117,6 +117,9 @@ pub enum Command {
     /// Layer-less helical printing: deform a spiral-vase print into a dish, vase, sphere or
     /// your own shape (expressions), checked for printability before it is written.
     Deform(DeformArgs),
+    /// Surface texture by speed modulation at constant extrusion: slower where the picture
+    /// is dark (a thicker bead), faster where it is light.
+    Texture(TextureArgs),
     /// Draw layers as SVG (the layer below, the strands by role, the regions over air), or a
     /// layer-less print whole (side profile and top view, unsupported points red).
     #[command(group(clap::ArgGroup::new("what").args(["layer", "regions", "compare"])))]
@@ -391,6 +394,57 @@ pub struct DeformArgs {
     #[arg(long)]
     pub force: bool,
     /// Write an HTML page with the side profile and top view into this folder.
+    #[arg(long, value_name = "DIR")]
+    pub preview: Option<PathBuf>,
+    /// Machine-readable summary.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `poa texture`'s flags.
+#[derive(clap::Args)]
+#[command(group(clap::ArgGroup::new("picture").required(true).args(["image", "pattern"])))]
+pub struct TextureArgs {
+    /// A G-code file (any slicer that labels its external perimeters).
+    #[arg(value_name = "IN")]
+    pub file: PathBuf,
+    /// Output file.
+    #[arg(short, long, value_name = "OUT")]
+    pub output: PathBuf,
+    /// A PNG picture: dark = slow (thick bead), light = fast.
+    #[arg(long, value_name = "PIC.png")]
+    pub image: Option<PathBuf>,
+    /// A built-in pattern: stripes, checker, noise, or text:ABC.
+    #[arg(long, value_name = "NAME")]
+    pub pattern: Option<String>,
+    /// How the picture is laid on the part: cylindrical, planar-x, planar-y, spherical, wrap.
+    #[arg(long, value_name = "MAPPING", default_value = "cylindrical")]
+    pub mapping: String,
+    /// Size of one tile of the picture on the surface, `W,H` mm (default: 20 mm high).
+    #[arg(long, value_name = "W,H")]
+    pub size: Option<String>,
+    /// Where the tile starts, `U,V` mm on the surface.
+    #[arg(long, value_name = "U,V")]
+    pub offset: Option<String>,
+    /// Head speed for the darkest and the lightest texel, `LOW,HIGH` mm/s.
+    #[arg(long, value_name = "LOW,HIGH", default_value = "15,40")]
+    pub speed_range: String,
+    /// Roles to texture, comma-separated (external-perimeter, perimeter, ...).
+    #[arg(long, value_name = "ROLES", default_value = "external-perimeter")]
+    pub roles: String,
+    /// Light = slow instead of dark = slow.
+    #[arg(long)]
+    pub invert: bool,
+    /// constant (E per second kept: the paper) or velocity (E per mm kept, only F changes).
+    #[arg(long, value_name = "MODE", default_value = "constant", value_parser = ["constant", "velocity"])]
+    pub mode: String,
+    /// Volumetric flow cap in velocity mode, mm3/s (default: the profile's, else 15).
+    #[arg(long, value_name = "MM3/S")]
+    pub max_flow: Option<f64>,
+    /// Centre of the cylindrical and spherical mappings, `X,Y` (default: the walls' own).
+    #[arg(long, value_name = "X,Y")]
+    pub center: Option<String>,
+    /// Write an HTML page with the picture and the predicted bead width into this folder.
     #[arg(long, value_name = "DIR")]
     pub preview: Option<PathBuf>,
     /// Machine-readable summary.

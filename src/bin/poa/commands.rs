@@ -8,7 +8,7 @@ use printonair::emit::ProcessReport;
 use printonair::rewrite::{self, Request};
 use printonair::{input, output, preview, report};
 
-use crate::args::{CheckArgs, DeformArgs, DetectArgs, RewriteArgs};
+use crate::args::{CheckArgs, DeformArgs, DetectArgs, RewriteArgs, TextureArgs};
 use crate::print::{
     emit, emit_json, error_text, skipped_line, summary_line, verbose_lines, write_stdout,
 };
@@ -578,6 +578,125 @@ pub fn deform(args: DeformArgs) -> anyhow::Result<ExitCode> {
             } else {
                 "NOT printable (--force)".to_string()
             }
+        ))?;
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `poa texture`.
+pub fn texture(args: TextureArgs) -> anyhow::Result<ExitCode> {
+    use printonair::texture::{self, Mapping, Mode, Source, Spec};
+    let source = match (&args.image, &args.pattern) {
+        (Some(path), None) => {
+            let meta = std::fs::metadata(path)
+                .map_err(|e| anyhow::anyhow!("--image {}: {e}", path.display()))?;
+            anyhow::ensure!(
+                meta.is_file() && meta.len() <= 64 * 1024 * 1024,
+                "--image {}: not a PNG file of at most 64 MiB",
+                path.display()
+            );
+            let data = std::fs::read(path)
+                .map_err(|e| anyhow::anyhow!("--image {}: {e}", path.display()))?;
+            Source::png(&data)?
+        }
+        (None, Some(p)) => Source::pattern(p)?,
+        _ => anyhow::bail!("give one of --image, --pattern"),
+    };
+    let speeds = crate::parse_numbers(&args.speed_range, 2, "--speed-range")?;
+    let size = match &args.size {
+        Some(s) => {
+            let v = crate::parse_numbers(s, 2, "--size")?;
+            Some([v[0], v[1]])
+        }
+        None => None,
+    };
+    let offset = match &args.offset {
+        Some(s) => {
+            let v = crate::parse_numbers(s, 2, "--offset")?;
+            [v[0], v[1]]
+        }
+        None => [0.0, 0.0],
+    };
+    let center = match &args.center {
+        Some(s) => {
+            let v = crate::parse_numbers(s, 2, "--center")?;
+            Some([v[0], v[1]])
+        }
+        None => None,
+    };
+    if let Some(f) = args.max_flow {
+        anyhow::ensure!(
+            f.is_finite() && (0.1..=200.0).contains(&f),
+            "--max-flow {f}: between 0.1 and 200 mm3/s"
+        );
+    }
+    let spec = Spec {
+        source,
+        mapping: Mapping::parse(&args.mapping)?,
+        size,
+        offset,
+        speeds: [speeds[0], speeds[1]],
+        roles: texture::parse_roles(&args.roles)?,
+        invert: args.invert,
+        mode: if args.mode == "velocity" {
+            Mode::Velocity
+        } else {
+            Mode::Constant
+        },
+        max_flow: args.max_flow,
+        center,
+    };
+    let done = rewrite::texture_file(&args.file, &args.output, &spec, args.preview.as_deref())?;
+    let t = &done.textured;
+    let [vmin, vmax] = t.achieved();
+    let texel = t.min_texel(spec.speeds);
+    if args.json {
+        #[derive(serde::Serialize)]
+        struct Out {
+            output: String,
+            pieces: usize,
+            lines_rewritten: u64,
+            piece_mm: f64,
+            speed_asked: [f64; 2],
+            speed_reached: [f64; 2],
+            acceleration: f64,
+            min_texel_mm: f64,
+            time_in_s: f64,
+            time_out_s: f64,
+            filament_in_mm: f64,
+            filament_out_mm: f64,
+        }
+        emit_json(&Out {
+            output: args.output.display().to_string(),
+            pieces: t.pieces.len(),
+            lines_rewritten: t.lines_rewritten,
+            piece_mm: t.piece_len,
+            speed_asked: spec.speeds,
+            speed_reached: [vmin, vmax],
+            acceleration: t.acceleration,
+            min_texel_mm: texel,
+            time_in_s: t.time_in,
+            time_out_s: t.time_out,
+            filament_in_mm: t.filament_in,
+            filament_out_mm: t.filament_out,
+        })?;
+    } else {
+        write_stdout(&format!(
+            "{}: {} moves textured in {} pieces of up to {:.2} mm; speed {:.0} -> {:.0} mm/s asked, {:.1} -> {:.1} reached ({:.0} -> {:.0} mm/s needs {:.2} mm at {:.0} mm/s2); time {} -> {}\n",
+            args.output.display(),
+            t.lines_rewritten,
+            t.pieces.len(),
+            t.piece_len,
+            spec.speeds[0],
+            spec.speeds[1],
+            vmin,
+            vmax,
+            spec.speeds[0],
+            spec.speeds[1],
+            texel,
+            t.acceleration,
+            printonair::estimate::format_dhms(t.time_in),
+            printonair::estimate::format_dhms(t.time_out),
         ))?;
     }
     Ok(ExitCode::SUCCESS)

@@ -142,6 +142,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         }
         Command::Check(args) => commands::check(args),
         Command::Deform(args) => commands::deform(args),
+        Command::Texture(args) => commands::texture(args),
         Command::Preview {
             file,
             compare: Some(original),

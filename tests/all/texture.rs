@@ -1,0 +1,340 @@
+//! `poa texture`: speed modulation at constant extrusion on a PrusaSlicer cylinder and box.
+//! E per second along every textured external perimeter, by poa's estimator on the output,
+//! is the slicer's; no other line changes; the bead widths the output lays follow the
+//! picture; commanded speeds stay in the range; the contrast report is the hand calculation;
+//! bad pictures, roles and ranges are refused with one line and nothing written.
+
+use std::path::Path;
+
+use printonair::estimate::{feed_text, Estimator, Limits};
+use printonair::layers::{LayerKind, Role, SlicerConfig};
+use printonair::machine::Machine;
+
+use crate::common::{all_layers, part, poa, poa_to, read, sample, slice_mesh, slice_stl, Mesh};
+
+/// External perimeter paths: (source lines, total E, length, nominal E per second).
+fn perimeters(text: &[u8]) -> Vec<(Vec<u64>, f64, f64, f64)> {
+    all_layers(text)
+        .iter()
+        .filter(|l| l.kind == LayerKind::Layer)
+        .flat_map(|l| l.paths.iter())
+        .filter(|p| p.role == Role::ExternalPerimeter)
+        .map(|p| {
+            let e: f64 = p.seg_e.iter().sum();
+            let len = p.length();
+            (p.seg_line.clone(), e, len, e / len * p.feed / 60.0)
+        })
+        .collect()
+}
+
+/// Time (s) of each line's move by poa's estimator.
+fn line_durations(text: &[u8]) -> std::collections::HashMap<u64, f64> {
+    let config = SlicerConfig::parse(text);
+    let mut est = Estimator::new(Limits::from_config(&config)).with_marks(1e-9);
+    let mut machine = Machine::new();
+    feed_text(&mut est, &mut machine, text, 0);
+    let marks = est.finish().1;
+    let mut out = std::collections::HashMap::new();
+    let mut before = 0.0;
+    for (line, t) in marks {
+        *out.entry(line).or_insert(0.0) += t - before;
+        before = t;
+    }
+    out
+}
+
+/// Lines that stay the slicer's whatever the texture does: everything but extrusion moves,
+/// progress lines and the statistics footer.
+fn untouched(text: &[u8]) -> Vec<&[u8]> {
+    text.split(|&b| b == b'\n')
+        .filter(|l| {
+            let extrusion =
+                (l.starts_with(b"G1 ") || l.starts_with(b"G2 ") || l.starts_with(b"G3 "))
+                    && l.split(|&b| b == b';').next().unwrap().contains(&b'E');
+            let footer = l.starts_with(b"; filament used")
+                || l.starts_with(b"; total filament")
+                || l.starts_with(b"; estimated printing time");
+            !(extrusion || l.starts_with(b"M73 ") || footer)
+        })
+        .collect()
+}
+
+fn pearson(a: &[f64], b: &[f64]) -> f64 {
+    let n = a.len() as f64;
+    let (ma, mb) = (a.iter().sum::<f64>() / n, b.iter().sum::<f64>() / n);
+    let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
+    for (x, y) in a.iter().zip(b) {
+        sab += (x - ma) * (y - mb);
+        saa += (x - ma).powi(2);
+        sbb += (y - mb).powi(2);
+    }
+    sab / (saa * sbb).sqrt()
+}
+
+/// Textures `text` through the library and checks every claim of the module doc.
+fn judge(what: &str, text: &[u8], spec: &printonair::texture::Spec) {
+    let config = SlicerConfig::parse(text);
+    let t = printonair::texture::texture_text(text, &config, spec).expect(what);
+    let out = &t.text;
+    // 1. E per second of every textured external perimeter, timed by the estimator on the
+    //    output, within 2 % of the slicer's.
+    let before = perimeters(text);
+    let after = perimeters(out);
+    assert_eq!(before.len(), after.len(), "{what}: external perimeters");
+    let times = line_durations(out);
+    let mut worst: f64 = 0.0;
+    for (b, a) in before.iter().zip(&after) {
+        let time: f64 =
+            a.0.iter()
+                .collect::<std::collections::BTreeSet<_>>()
+                .iter()
+                .map(|l| times.get(l).copied().unwrap_or(0.0))
+                .sum();
+        if time <= 0.0 || b.2 < 2.0 {
+            continue;
+        }
+        worst = worst.max((a.1 / time / b.3 - 1.0).abs());
+    }
+    assert!(
+        worst <= 0.02,
+        "{what}: E per second off the slicer's by {:.1} %",
+        100.0 * worst
+    );
+    // 2. Nothing else changed.
+    assert_eq!(
+        untouched(text),
+        untouched(out),
+        "{what}: a line outside the texture changed"
+    );
+    // 3. Commanded speeds within the range.
+    for p in &t.pieces {
+        assert!(
+            p.target >= spec.speeds[0] - 1e-9 && p.target <= spec.speeds[1] + 1e-9,
+            "{what}: {}",
+            p.target
+        );
+    }
+    // 4. The bead widths follow the picture where texels are longer than the smallest the
+    //    acceleration renders: pieces at least that far from a change of the picture.
+    let fa = printonair::layers::filament_area(config.filament_diameter());
+    let texel = t.min_texel(spec.speeds);
+    let (mut dark, mut width) = (Vec::new(), Vec::new());
+    for k in 0..t.pieces.len() {
+        let p = &t.pieces[k];
+        let steady = (k.saturating_sub(8)..(k + 8).min(t.pieces.len())).all(|j| {
+            let q = &t.pieces[j];
+            (q.darkness - p.darkness).abs() < 0.05
+                || ((q.to[0] - p.to[0]).hypot(q.to[1] - p.to[1]) > texel + 2.0 * t.piece_len)
+                || (q.to[2] - p.to[2]).abs() > 1e-6
+        });
+        if steady {
+            dark.push(p.darkness);
+            width.push(t.width(k, spec.mode, fa));
+        }
+    }
+    let r = pearson(&dark, &width);
+    assert!(
+        dark.len() > 500 && r >= 0.9,
+        "{what}: widths correlate {r:.3} with the picture over {} pieces",
+        dark.len()
+    );
+    println!(
+        "{what}: {} pieces, E/s within {:.2} %, width~picture r = {r:.3}",
+        t.pieces.len(),
+        100.0 * worst
+    );
+}
+
+fn spec(source: printonair::texture::Source, mapping: &str) -> printonair::texture::Spec {
+    printonair::texture::Spec {
+        source,
+        mapping: printonair::texture::Mapping::parse(mapping).unwrap(),
+        size: Some([10.0, 6.0]),
+        offset: [0.0, 0.0],
+        speeds: [15.0, 40.0],
+        roles: vec![Role::ExternalPerimeter],
+        invert: false,
+        mode: printonair::texture::Mode::Constant,
+        max_flow: None,
+        center: None,
+    }
+}
+
+#[test]
+fn a_cylinder_and_a_box_keep_the_slicers_extrusion_rate_under_a_texture() {
+    use printonair::texture::Source;
+    if let Some(cyl) = slice_stl(&part("vase_cylinder"), &[]) {
+        judge(
+            "cylinder, stripes",
+            &cyl,
+            &spec(Source::Stripes, "cylindrical"),
+        );
+        judge(
+            "cylinder, checker",
+            &cyl,
+            &spec(Source::Checker, "cylindrical"),
+        );
+    }
+    let mut mesh = Mesh::default();
+    mesh.cuboid([0.0, 0.0, 0.0], [25.0, 15.0, 10.0]);
+    if let Some(boxy) = slice_mesh(&mesh, &["--center", "125,105"]) {
+        judge(
+            "box, checker wrapped",
+            &boxy,
+            &spec(Source::Checker, "wrap"),
+        );
+        judge(
+            "box, stripes planar",
+            &boxy,
+            &spec(Source::Stripes, "planar-x"),
+        );
+    }
+}
+
+/// A PNG file with this header and pixels (8-bit grey), or with no pixel data at all.
+fn png_file(path: &Path, w: u32, h: u32, pixels: Option<&[u8]>) {
+    match pixels {
+        Some(px) => {
+            let f = std::fs::File::create(path).unwrap();
+            let mut enc = png::Encoder::new(std::io::BufWriter::new(f), w, h);
+            enc.set_color(png::ColorType::Grayscale);
+            enc.set_depth(png::BitDepth::Eight);
+            enc.write_header().unwrap().write_image_data(px).unwrap();
+        }
+        None => {
+            // Signature and an IHDR claiming w x h, then the end: what a hostile file holds.
+            let chunk = |kind: &[u8], data: &[u8]| {
+                let mut c = (data.len() as u32).to_be_bytes().to_vec();
+                c.extend_from_slice(kind);
+                c.extend_from_slice(data);
+                let mut h = crc32fast::Hasher::new();
+                h.update(kind);
+                h.update(data);
+                c.extend_from_slice(&h.finalize().to_be_bytes());
+                c
+            };
+            let mut ihdr = w.to_be_bytes().to_vec();
+            ihdr.extend_from_slice(&h.to_be_bytes());
+            ihdr.extend_from_slice(&[8, 0, 0, 0, 0]);
+            let mut f = b"\x89PNG\r\n\x1a\n".to_vec();
+            f.extend(chunk(b"IHDR", &ihdr));
+            f.extend(chunk(b"IEND", &[]));
+            std::fs::write(path, f).unwrap();
+        }
+    }
+}
+
+#[test]
+fn a_picture_is_printed_and_the_report_is_the_hand_calculation() {
+    let Some(cyl) = slice_stl(&part("vase_cylinder"), &[]) else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("cyl.gcode");
+    std::fs::write(&input, &cyl).unwrap();
+    // A picture: dark left half, light right half, 32 x 16 pixels.
+    let pic = dir.path().join("half.png");
+    let px: Vec<u8> = (0..16 * 32)
+        .map(|i| if i % 32 < 16 { 0 } else { 255 })
+        .collect();
+    png_file(&pic, 32, 16, Some(&px));
+    let out = dir.path().join("out.gcode");
+    let prev = dir.path().join("prev");
+    let o = poa_to(
+        "texture",
+        &input,
+        &out,
+        &[
+            "--image",
+            pic.to_str().unwrap(),
+            "--size",
+            "12,6",
+            "--speed-range",
+            "15,40",
+            "--preview",
+            prev.to_str().unwrap(),
+        ],
+    );
+    let said = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // (40^2 - 15^2) / (2 x a), with a the file's extruding acceleration.
+    let config = SlicerConfig::parse(&cyl);
+    let a = Limits::from_config(&config).extruding;
+    let want = (40.0f64.powi(2) - 15.0f64.powi(2)) / (2.0 * a);
+    assert!(
+        said.contains(&format!("needs {want:.2} mm at {a:.0} mm/s2")),
+        "{said} (want {want:.2} at {a})"
+    );
+    let page = std::fs::read_to_string(prev.join("index.html")).unwrap();
+    assert!(page.matches("<svg").count() == 2 && page.contains("bead width"));
+    // poa check: nothing in air that the slice did not have.
+    let c = poa().arg("check").arg("--json").arg(&out).output().unwrap();
+    let v: serde_json::Value = serde_json::from_slice(&c.stdout).unwrap();
+    assert!(v["in_air_mm"].as_f64().unwrap() < 1.0, "{v}");
+}
+
+#[test]
+fn bad_pictures_roles_ranges_and_files_get_one_line_and_nothing_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = sample("rect_overhang_prusa_rel.gcode");
+    let out = dir.path().join("out.gcode");
+    let empty = dir.path().join("empty.png");
+    png_file(&empty, 0, 0, None);
+    let huge = dir.path().join("huge.png");
+    png_file(&huge, 100_000, 100_000, None);
+    let text = dir.path().join("text.png");
+    std::fs::write(&text, "not a picture").unwrap();
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let cases: Vec<(Vec<String>, &str)> = vec![
+        (vec!["--image".into(), "/no/such.png".into()], "such.png"),
+        (vec!["--image".into(), s(&text)], "not a PNG"),
+        (vec!["--image".into(), s(&empty)], "0 x 0"),
+        (vec!["--image".into(), s(&huge)], "100000 x 100000"),
+        (
+            vec![
+                "--pattern".into(),
+                "checker".into(),
+                "--roles".into(),
+                "".into(),
+            ],
+            "--roles is empty",
+        ),
+        (
+            vec![
+                "--pattern".into(),
+                "checker".into(),
+                "--speed-range".into(),
+                "40,15".into(),
+            ],
+            "LOW <= HIGH",
+        ),
+        (vec!["--pattern".into(), "text:a~b".into()], "no `~`"),
+    ];
+    for (args, want) in &cases {
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let o = poa_to("texture", &input, &out, &args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success() && err.contains(want), "{args:?}: {err}");
+        assert!(err.trim().lines().count() <= 2, "{err}");
+        assert!(!out.exists(), "{args:?} wrote a file");
+    }
+    // A file without external perimeters (no role comments): said, nothing written.
+    let o = poa_to(
+        "texture",
+        &sample("rect_overhang_nocomments.gcode"),
+        &out,
+        &["--pattern", "checker"],
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("no external perimeter"),
+        "{err}"
+    );
+    assert!(!out.exists());
+    // The input is never the output.
+    let copy = dir.path().join("copy.gcode");
+    std::fs::write(&copy, read(&input)).unwrap();
+    let o = poa_to("texture", &copy, &copy, &["--pattern", "checker"]);
+    assert!(!o.status.success());
+    assert_eq!(read(&copy), read(&input));
+}
