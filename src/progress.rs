@@ -28,6 +28,17 @@ pub struct Totals {
     pub silent: Option<f64>,
 }
 
+impl Totals {
+    /// The totals a slicer's file states (PrusaSlicer's config block).
+    pub fn of(config: &crate::config::SlicerConfig) -> Totals {
+        let time = |k: &str| config.get(k).and_then(crate::estimate::parse_dhms);
+        Totals {
+            normal: time("estimated_printing_time"),
+            silent: time("estimated_printing_time_silent"),
+        }
+    }
+}
+
 /// Rewrites the `M73` lines of `input` into `output` for the time in `added` (sorted by
 /// offset). Returns how many lines changed.
 ///
@@ -238,12 +249,14 @@ pub struct Refreshed {
 
 /// Updates the `M73` lines and the statistics footer of `mapped`, a whole-file transform of
 /// `input` that keeps its lines outside the moves it changed (a deformation, a texture): the
-/// estimator's difference between input and output at each `M73` is added to the slicer's
-/// own numbers, and the footer gets the time and filament added.
+/// estimator's difference between input and output at each `M73` is added to the numbers
+/// the lines have (computed against `totals`: [`Totals::of`] for a slicer's file), and the
+/// footer gets the time and filament added.
 pub fn refresh(
     input: &[u8],
     mapped: Vec<u8>,
     config: &crate::config::SlicerConfig,
+    totals: Totals,
 ) -> Result<Refreshed, crate::error::Error> {
     let limits = crate::estimate::Limits::from_config(config);
     let (t_in, time_in, filament_in) = progress_times(input, &limits);
@@ -262,11 +275,6 @@ pub fn refresh(
         offset: mapped.len() as u64,
         seconds: (time_out - time_in) - before,
     });
-    let time = |k: &str| config.get(k).and_then(crate::estimate::parse_dhms);
-    let totals = Totals {
-        normal: time("estimated_printing_time"),
-        silent: time("estimated_printing_time_silent"),
-    };
     let mut fixed = Vec::with_capacity(mapped.len());
     update(&mapped[..], &mut fixed, &added, totals).map_err(|e| {
         crate::error::Error::Refused(format!("cannot update the progress lines: {e}"))

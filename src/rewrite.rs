@@ -32,6 +32,8 @@ pub struct Request {
     pub skip_objects: Vec<String>,
     /// Leave the slicer's `M73` lines as they are.
     pub keep_progress: bool,
+    /// A texture applied after the rewrite, in the same run (`--texture`).
+    pub texture: Option<crate::texture::Spec>,
 }
 
 impl Request {
@@ -71,15 +73,6 @@ impl Request {
 /// Wraps the text reader (a progress bar, say); gets the file's size.
 pub type Wrap<'a> = &'a (dyn Fn(Box<dyn BufRead + Send>, u64) -> Box<dyn BufRead + Send> + Sync);
 
-/// The slicer's stated print times, which the progress lines count down from.
-fn totals(config: &SlicerConfig) -> progress::Totals {
-    let time = |k: &str| config.get(k).and_then(crate::estimate::parse_dhms);
-    progress::Totals {
-        normal: time("estimated_printing_time"),
-        silent: time("estimated_printing_time_silent"),
-    }
-}
-
 /// Rewrites `file` into `dest` (which may be `file` itself, for slicer mode; `None` is a dry
 /// run). Returns `None` when the file was already rewritten by poa and is left as it is.
 ///
@@ -96,7 +89,7 @@ pub fn rewrite_file(
         return Ok(None);
     }
     let opts = req.options(&opened.config)?;
-    let totals = totals(&opened.config);
+    let totals = progress::Totals::of(&opened.config);
     let reader = wrap(opened.reader, opened.size);
     let read_err = |source| Error::Read {
         path: file.to_path_buf(),
@@ -122,6 +115,7 @@ pub fn rewrite_file(
         object_filter_matches(file, report, &opts.objects)
     };
     let config = opened.config;
+    let texture_config = req.texture.as_ref().map(|_| config.clone());
     // The rewrite itself, into the first temporary file.
     let first_pass = |mut w: &mut dyn std::io::Write, dest: &Path| {
         let report =
@@ -129,49 +123,97 @@ pub fn rewrite_file(
         filter_err(&report)?;
         Ok(report)
     };
-    let result = match (dest, opened.binary) {
-        (Some(dest), Some(mut layout)) => output::write_atomic_twice(
-            dest,
-            inputs,
-            // Binary G-code: the rewritten text goes to a first temporary file, then into G-code
-            // blocks after the metadata, which states the new totals.
-            |w| first_pass(w, dest),
-            |_| true,
-            |report, written, w| {
-                emit::update_binary_metadata(&mut layout.other, report);
-                let werr = |source| Error::Write {
-                    path: dest.to_path_buf(),
-                    source,
-                };
-                let mut blocks = bgcode::stream::GcodeWriter::new(w, &layout).map_err(werr)?;
-                if req.updates_progress(report) {
-                    progress::update(written, &mut blocks, &report.progress, totals)
-                        .map_err(werr)?;
-                } else {
-                    std::io::copy(&mut std::io::BufReader::new(written), &mut blocks)
-                        .map_err(werr)?;
+    let result = if let Some(spec) = &req.texture {
+        if opened.binary.is_some() {
+            Err(Error::Invalid(format!(
+                "{} is binary G-code; --texture works on text (`poa convert` it first)",
+                file.display()
+            )))
+        } else {
+            // Print-on-Air, then the texture on its output, both in memory: the file is
+            // replaced once, or not at all. (A closure: errors go to the match below, which
+            // knows a file poa rewrote before.)
+            (|| -> Result<ProcessReport> {
+                let sink = dest.unwrap_or(file);
+                let mut text = Vec::new();
+                let mut report = first_pass(&mut text, sink)?;
+                if req.updates_progress(&report) {
+                    let mut fixed = Vec::with_capacity(text.len());
+                    progress::update(&text[..], &mut fixed, &report.progress, totals).map_err(
+                        |source| Error::Write {
+                            path: sink.to_path_buf(),
+                            source,
+                        },
+                    )?;
+                    text = fixed;
                 }
-                blocks.finish().map_err(werr)?;
-                Ok(())
-            },
-        ),
-        (Some(dest), None) => output::write_atomic_twice(
-            dest,
-            inputs,
-            |w| first_pass(w, dest),
-            |report| req.updates_progress(report),
-            // The progress lines precede the layers that added time: a second pass over the
-            // written text gives them the new times.
-            |report, written, w| {
-                progress::update(written, w, &report.progress, totals)
-                    .map(|_| ())
-                    .map_err(|source| Error::Write {
+                let poa_added = report.time_added_s;
+                let textured = crate::texture::texture_text(
+                    &text,
+                    texture_config.as_ref().unwrap_or(&SlicerConfig::default()),
+                    spec,
+                    progress::Totals {
+                        normal: totals.normal.map(|t| t + poa_added),
+                        silent: totals.silent.map(|t| t + poa_added),
+                    },
+                )
+                .map_err(|e| match e {
+                    Error::Invalid(m) => Error::Invalid(format!("{}: {m}", file.display())),
+                    other => other,
+                })?;
+                report.time_added_s += textured.time_out - textured.time_in;
+                report.filament_added_mm += textured.filament_out - textured.filament_in;
+                if let Some(dest) = dest {
+                    output::write_bytes(dest, inputs, &textured.text)?;
+                }
+                Ok(report)
+            })()
+        }
+    } else {
+        match (dest, opened.binary) {
+            (Some(dest), Some(mut layout)) => output::write_atomic_twice(
+                dest,
+                inputs,
+                // Binary G-code: the rewritten text goes to a first temporary file, then into G-code
+                // blocks after the metadata, which states the new totals.
+                |w| first_pass(w, dest),
+                |_| true,
+                |report, written, w| {
+                    emit::update_binary_metadata(&mut layout.other, report);
+                    let werr = |source| Error::Write {
                         path: dest.to_path_buf(),
                         source,
-                    })
-            },
-        ),
-        (None, _) => first_pass(&mut std::io::sink(), file),
+                    };
+                    let mut blocks = bgcode::stream::GcodeWriter::new(w, &layout).map_err(werr)?;
+                    if req.updates_progress(report) {
+                        progress::update(written, &mut blocks, &report.progress, totals)
+                            .map_err(werr)?;
+                    } else {
+                        std::io::copy(&mut std::io::BufReader::new(written), &mut blocks)
+                            .map_err(werr)?;
+                    }
+                    blocks.finish().map_err(werr)?;
+                    Ok(())
+                },
+            ),
+            (Some(dest), None) => output::write_atomic_twice(
+                dest,
+                inputs,
+                |w| first_pass(w, dest),
+                |report| req.updates_progress(report),
+                // The progress lines precede the layers that added time: a second pass over the
+                // written text gives them the new times.
+                |report, written, w| {
+                    progress::update(written, w, &report.progress, totals)
+                        .map(|_| ())
+                        .map_err(|source| Error::Write {
+                            path: dest.to_path_buf(),
+                            source,
+                        })
+                },
+            ),
+            (None, _) => first_pass(&mut std::io::sink(), file),
+        }
     };
     match result {
         Ok(r) => Ok(Some(r)),
@@ -259,7 +301,7 @@ pub fn ab_plate(
     let mut opts = req.options(&opened.config)?;
     opts.objects = ObjectFilter::from_globs(&plate.copy_names, &[])?;
     // The statistics and progress lines count the copy too.
-    let totals = totals(&opened.config);
+    let totals = progress::Totals::of(&opened.config);
     let mut text = Vec::with_capacity(plate.text.len());
     progress::update(&plate.text[..], &mut text, &plate.added, totals).map_err(read_err)?;
     let footer = footer_start(&text);
@@ -439,10 +481,13 @@ pub fn texture_file(
     preview: Option<&Path>,
 ) -> Result<TextureOutcome> {
     let (text, config) = whole_text(file, out, preview)?;
-    let textured = crate::texture::texture_text(&text, &config, spec).map_err(|e| match e {
-        Error::Invalid(m) => Error::Invalid(format!("{}: {m}", file.display())),
-        other => other,
-    })?;
+    let textured =
+        crate::texture::texture_text(&text, &config, spec, progress::Totals::of(&config)).map_err(
+            |e| match e {
+                Error::Invalid(m) => Error::Invalid(format!("{}: {m}", file.display())),
+                other => other,
+            },
+        )?;
     output::write_bytes(out, &[file], &textured.text)?;
     if let Some(dir) = preview {
         std::fs::create_dir_all(dir).map_err(|source| Error::Write {

@@ -311,7 +311,7 @@ pub fn deform_text(
             "the deformation is not printable: {f}; change it, or give --force to write it anyway"
         )));
     }
-    let done = crate::progress::refresh(text, mapped, config)?;
+    let done = crate::progress::refresh(text, mapped, config, crate::progress::Totals::of(config))?;
     Ok(Deformed {
         text: done.text,
         helix,

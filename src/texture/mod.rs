@@ -638,7 +638,14 @@ fn piece_times(text: &[u8], config: &SlicerConfig, pieces: &[PieceRec]) -> Optio
 }
 
 /// Textures `text` by `spec` (see the module doc).
-pub fn texture_text(text: &[u8], config: &SlicerConfig, spec: &Spec) -> Result<Textured, Error> {
+/// `totals`: the print times the file's progress lines were computed against
+/// ([`crate::progress::Totals::of`] for a slicer's file).
+pub fn texture_text(
+    text: &[u8],
+    config: &SlicerConfig,
+    spec: &Spec,
+    totals: crate::progress::Totals,
+) -> Result<Textured, Error> {
     let [low, high] = spec.speeds;
     if !(low.is_finite() && high.is_finite() && low > 0.0 && low <= high && high <= 1000.0) {
         return Err(Error::Invalid(format!(
@@ -709,7 +716,7 @@ pub fn texture_text(text: &[u8], config: &SlicerConfig, spec: &Spec) -> Result<T
             run(Some(&e))?.0
         }
     };
-    let done = crate::progress::refresh(text, mapped, config)?;
+    let done = crate::progress::refresh(text, mapped, config, totals)?;
     Ok(Textured {
         text: done.text,
         pieces,

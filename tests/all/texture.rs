@@ -74,7 +74,8 @@ fn pearson(a: &[f64], b: &[f64]) -> f64 {
 /// Textures `text` through the library and checks every claim of the module doc.
 fn judge(what: &str, text: &[u8], spec: &printonair::texture::Spec) {
     let config = SlicerConfig::parse(text);
-    let t = printonair::texture::texture_text(text, &config, spec).expect(what);
+    let totals = printonair::progress::Totals::of(&config);
+    let t = printonair::texture::texture_text(text, &config, spec, totals).expect(what);
     let out = &t.text;
     // 1. E per second of every textured external perimeter, timed by the estimator on the
     //    output, within 2 % of the slicer's.
@@ -337,4 +338,54 @@ fn bad_pictures_roles_ranges_and_files_get_one_line_and_nothing_written() {
     let o = poa_to("texture", &copy, &copy, &["--pattern", "checker"]);
     assert!(!o.status.success());
     assert_eq!(read(&copy), read(&input));
+}
+
+#[test]
+fn slicer_mode_rewrites_and_textures_in_one_run_or_leaves_the_file_alone() {
+    let dir = tempfile::tempdir().unwrap();
+    let original = read(&sample("circ_overhang_prusa_rel.gcode"));
+    let file = dir.path().join("part.gcode");
+    std::fs::write(&file, &original).unwrap();
+    let o = poa()
+        .args(["--texture", "checker", "--texture-size", "8,4"])
+        .arg(&file)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let both = read(&file);
+    // Print-on-Air's block is there, and the external perimeters are cut into texels.
+    assert!(both.windows(11).any(|w| w == b";POA_BEGIN "));
+    let pieces = |t: &[u8]| perimeters(t).iter().map(|p| p.0.len()).sum::<usize>();
+    assert!(pieces(&both) > 2 * pieces(&original), "not textured");
+    // The same as the rewrite alone, less nothing in air.
+    let alone = dir.path().join("alone.gcode");
+    assert!(poa_to(
+        "process",
+        &sample("circ_overhang_prusa_rel.gcode"),
+        &alone,
+        &[]
+    )
+    .status
+    .success());
+    let air = |p: &Path| {
+        let c = poa().arg("check").arg("--json").arg(p).output().unwrap();
+        serde_json::from_slice::<serde_json::Value>(&c.stdout).unwrap()["in_air_mm"]
+            .as_f64()
+            .unwrap()
+    };
+    assert!(
+        air(&file) <= air(&alone) + 0.5,
+        "{} vs {}",
+        air(&file),
+        air(&alone)
+    );
+    // A texture that cannot be made leaves the file as the slicer wrote it.
+    std::fs::write(&file, &original).unwrap();
+    let o = poa()
+        .args(["--texture", "text:~"])
+        .arg(&file)
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    assert_eq!(read(&file), original);
 }

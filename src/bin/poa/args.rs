@@ -237,6 +237,161 @@ pub struct RewriteArgs {
     pub keep_progress: bool,
     #[command(flatten)]
     pub detect: DetectArgs,
+    #[command(flatten)]
+    pub texture: TextureFlags,
+}
+
+/// A texture applied after the Print-on-Air rewrite, in the same run (slicer mode and
+/// `process`): `poa texture`'s options under `--texture-*` names.
+#[derive(clap::Args, Default)]
+pub struct TextureFlags {
+    /// Texture the walls too: a pattern (stripes, checker, noise, text:ABC) or a PNG picture.
+    #[arg(long, value_name = "PATTERN|PIC.png")]
+    pub texture: Option<String>,
+    /// How the texture is laid on the part (see `poa texture --help`).
+    #[arg(
+        long,
+        value_name = "MAPPING",
+        default_value = "cylindrical",
+        requires = "texture"
+    )]
+    pub texture_mapping: String,
+    /// Size of one tile of the texture, `W,H` mm.
+    #[arg(long, value_name = "W,H", requires = "texture")]
+    pub texture_size: Option<String>,
+    /// Head speed for the darkest and the lightest texel, `LOW,HIGH` mm/s.
+    #[arg(
+        long,
+        value_name = "LOW,HIGH",
+        default_value = "15,40",
+        requires = "texture"
+    )]
+    pub texture_speed_range: String,
+    /// Roles to texture, comma-separated.
+    #[arg(
+        long,
+        value_name = "ROLES",
+        default_value = "external-perimeter",
+        requires = "texture"
+    )]
+    pub texture_roles: String,
+    /// Light = slow.
+    #[arg(long, requires = "texture")]
+    pub texture_invert: bool,
+    /// constant (E per second kept) or velocity (E per mm kept).
+    #[arg(long, value_name = "MODE", default_value = "constant", value_parser = ["constant", "velocity"], requires = "texture")]
+    pub texture_mode: String,
+}
+
+impl TextureFlags {
+    /// The texture asked for, if any.
+    pub fn spec(&self) -> anyhow::Result<Option<printonair::texture::Spec>> {
+        let Some(what) = &self.texture else {
+            return Ok(None);
+        };
+        let is_picture = what.to_ascii_lowercase().ends_with(".png");
+        let (image, pattern) = if is_picture {
+            (Some(std::path::Path::new(what)), None)
+        } else {
+            (None, Some(what.as_str()))
+        };
+        texture_spec(TextureParts {
+            image,
+            pattern,
+            mapping: &self.texture_mapping,
+            size: self.texture_size.as_deref(),
+            offset: None,
+            speed_range: &self.texture_speed_range,
+            roles: &self.texture_roles,
+            invert: self.texture_invert,
+            mode: &self.texture_mode,
+            max_flow: None,
+            center: None,
+        })
+        .map(Some)
+    }
+}
+
+/// The texture options as given, before they are checked.
+pub struct TextureParts<'a> {
+    pub image: Option<&'a std::path::Path>,
+    pub pattern: Option<&'a str>,
+    pub mapping: &'a str,
+    pub size: Option<&'a str>,
+    pub offset: Option<&'a str>,
+    pub speed_range: &'a str,
+    pub roles: &'a str,
+    pub invert: bool,
+    pub mode: &'a str,
+    pub max_flow: Option<f64>,
+    pub center: Option<&'a str>,
+}
+
+/// Checks texture options and reads the picture: the one place `poa texture` and the
+/// `--texture-*` flags become a [`printonair::texture::Spec`].
+pub fn texture_spec(t: TextureParts<'_>) -> anyhow::Result<printonair::texture::Spec> {
+    use printonair::texture::{self, Mapping, Mode, Source};
+    let source = match (t.image, t.pattern) {
+        (Some(path), None) => {
+            let meta = std::fs::metadata(path)
+                .map_err(|e| anyhow::anyhow!("--image {}: {e}", path.display()))?;
+            anyhow::ensure!(
+                meta.is_file() && meta.len() <= 64 * 1024 * 1024,
+                "--image {}: not a PNG file of at most 64 MiB",
+                path.display()
+            );
+            let data = std::fs::read(path)
+                .map_err(|e| anyhow::anyhow!("--image {}: {e}", path.display()))?;
+            Source::png(&data)?
+        }
+        (None, Some(p)) => Source::pattern(p)?,
+        _ => anyhow::bail!("give one of --image, --pattern"),
+    };
+    let pair = |text: Option<&str>, what: &str| -> anyhow::Result<Option<[f64; 2]>> {
+        text.map(|s| crate::parse_numbers(s, 2, what).map(|v| [v[0], v[1]]))
+            .transpose()
+    };
+    let speeds = crate::parse_numbers(t.speed_range, 2, "--speed-range")?;
+    if let Some(f) = t.max_flow {
+        anyhow::ensure!(
+            f.is_finite() && (0.1..=200.0).contains(&f),
+            "--max-flow {f}: between 0.1 and 200 mm3/s"
+        );
+    }
+    Ok(texture::Spec {
+        source,
+        mapping: Mapping::parse(t.mapping)?,
+        size: pair(t.size, "--size")?,
+        offset: pair(t.offset, "--offset")?.unwrap_or([0.0, 0.0]),
+        speeds: [speeds[0], speeds[1]],
+        roles: texture::parse_roles(t.roles)?,
+        invert: t.invert,
+        mode: if t.mode == "velocity" {
+            Mode::Velocity
+        } else {
+            Mode::Constant
+        },
+        max_flow: t.max_flow,
+        center: pair(t.center, "--center")?,
+    })
+}
+
+impl TextureArgs {
+    pub fn spec(&self) -> anyhow::Result<printonair::texture::Spec> {
+        texture_spec(TextureParts {
+            image: self.image.as_deref(),
+            pattern: self.pattern.as_deref(),
+            mapping: &self.mapping,
+            size: self.size.as_deref(),
+            offset: self.offset.as_deref(),
+            speed_range: &self.speed_range,
+            roles: &self.roles,
+            invert: self.invert,
+            mode: &self.mode,
+            max_flow: self.max_flow,
+            center: self.center.as_deref(),
+        })
+    }
 }
 
 impl RewriteArgs {
@@ -272,6 +427,7 @@ impl RewriteArgs {
             objects: self.objects.clone(),
             skip_objects: self.skip_objects.clone(),
             keep_progress: self.keep_progress,
+            texture: self.texture.spec()?,
         })
     }
 }

@@ -585,67 +585,7 @@ pub fn deform(args: DeformArgs) -> anyhow::Result<ExitCode> {
 
 /// `poa texture`.
 pub fn texture(args: TextureArgs) -> anyhow::Result<ExitCode> {
-    use printonair::texture::{self, Mapping, Mode, Source, Spec};
-    let source = match (&args.image, &args.pattern) {
-        (Some(path), None) => {
-            let meta = std::fs::metadata(path)
-                .map_err(|e| anyhow::anyhow!("--image {}: {e}", path.display()))?;
-            anyhow::ensure!(
-                meta.is_file() && meta.len() <= 64 * 1024 * 1024,
-                "--image {}: not a PNG file of at most 64 MiB",
-                path.display()
-            );
-            let data = std::fs::read(path)
-                .map_err(|e| anyhow::anyhow!("--image {}: {e}", path.display()))?;
-            Source::png(&data)?
-        }
-        (None, Some(p)) => Source::pattern(p)?,
-        _ => anyhow::bail!("give one of --image, --pattern"),
-    };
-    let speeds = crate::parse_numbers(&args.speed_range, 2, "--speed-range")?;
-    let size = match &args.size {
-        Some(s) => {
-            let v = crate::parse_numbers(s, 2, "--size")?;
-            Some([v[0], v[1]])
-        }
-        None => None,
-    };
-    let offset = match &args.offset {
-        Some(s) => {
-            let v = crate::parse_numbers(s, 2, "--offset")?;
-            [v[0], v[1]]
-        }
-        None => [0.0, 0.0],
-    };
-    let center = match &args.center {
-        Some(s) => {
-            let v = crate::parse_numbers(s, 2, "--center")?;
-            Some([v[0], v[1]])
-        }
-        None => None,
-    };
-    if let Some(f) = args.max_flow {
-        anyhow::ensure!(
-            f.is_finite() && (0.1..=200.0).contains(&f),
-            "--max-flow {f}: between 0.1 and 200 mm3/s"
-        );
-    }
-    let spec = Spec {
-        source,
-        mapping: Mapping::parse(&args.mapping)?,
-        size,
-        offset,
-        speeds: [speeds[0], speeds[1]],
-        roles: texture::parse_roles(&args.roles)?,
-        invert: args.invert,
-        mode: if args.mode == "velocity" {
-            Mode::Velocity
-        } else {
-            Mode::Constant
-        },
-        max_flow: args.max_flow,
-        center,
-    };
+    let spec = args.spec()?;
     let done = rewrite::texture_file(&args.file, &args.output, &spec, args.preview.as_deref())?;
     let t = &done.textured;
     let [vmin, vmax] = t.achieved();
