@@ -23,6 +23,7 @@ pub mod emit;
 pub mod error;
 pub mod estimate;
 pub mod expr;
+pub mod fiveaxis;
 pub mod gcode;
 pub mod geometry;
 pub mod helix;

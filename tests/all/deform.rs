@@ -9,6 +9,7 @@ use printonair::helix::{self, deform::Deform, deform::Frame, deform::Spec};
 use printonair::layers::SlicerConfig;
 
 use crate::common::{poa, poa_to, read, sample, slice_cura, strip_comments};
+use printonair::fiveaxis::to_segment;
 
 /// The extrusion moves of `text` with line numbers: (from, to, e).
 fn extrusions(text: &[u8]) -> Vec<(u64, [f64; 3], [f64; 3], f64)> {
@@ -23,19 +24,6 @@ fn extrusions(text: &[u8]) -> Vec<(u64, [f64; 3], [f64; 3], f64)> {
 
 fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
     ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
-}
-
-/// Distance from `p` to the segment a-b.
-fn to_segment(p: [f64; 3], a: [f64; 3], b: [f64; 3]) -> f64 {
-    let ab = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
-    let l2 = ab[0] * ab[0] + ab[1] * ab[1] + ab[2] * ab[2];
-    let t = if l2 > 0.0 {
-        (((p[0] - a[0]) * ab[0] + (p[1] - a[1]) * ab[1] + (p[2] - a[2]) * ab[2]) / l2)
-            .clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    dist(p, [a[0] + t * ab[0], a[1] + t * ab[1], a[2] + t * ab[2]])
 }
 
 struct Run {

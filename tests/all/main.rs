@@ -15,6 +15,7 @@ mod cura_script;
 mod deform;
 mod estimate;
 mod faults;
+mod fiveaxis;
 mod frontend;
 mod golden;
 mod parts;

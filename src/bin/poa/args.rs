@@ -117,6 +117,18 @@ pub enum Command {
     /// Layer-less helical printing: deform a spiral-vase print into a dish, vase, sphere or
     /// your own shape (expressions), checked for printability before it is written.
     Deform(DeformArgs),
+    /// List the built-in five-axis machines, or print one as YAML to copy and edit.
+    Machines {
+        /// A built-in machine to print.
+        name: Option<String>,
+    },
+    /// Five-axis printing: a workpiece path with tool directions into joint G-code for a
+    /// table-tilting printer.
+    #[command(name = "five-axis")]
+    FiveAxis(FiveAxisArgs),
+    /// Slice a swept part (a section carried along a curve) into layers normal to the curve,
+    /// one continuous path; joint G-code too with --machine.
+    Sweep(SweepArgs),
     /// Surface texture by speed modulation at constant extrusion: slower where the picture
     /// is dark (a thicker bead), faster where it is light.
     Texture(TextureArgs),
@@ -606,4 +618,92 @@ pub struct TextureArgs {
     /// Machine-readable summary.
     #[arg(long)]
     pub json: bool,
+}
+
+/// How F is written for five-axis moves.
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum FeedArg {
+    /// F so that the tip moves at --speed.
+    Tip,
+    /// G93 inverse time: F = 1 / minutes of each move.
+    InverseTime,
+}
+
+/// Options shared by `five-axis` and `sweep --machine`.
+#[derive(clap::Args)]
+pub struct JointArgs {
+    /// Tip speed along the workpiece, mm/s.
+    #[arg(long, value_name = "MM/S", default_value_t = 20.0)]
+    pub speed: f64,
+    /// How F is written.
+    #[arg(long, value_enum, default_value = "tip")]
+    pub feed: FeedArg,
+    /// Largest distance of the tip's path from the straight workpiece segment, mm.
+    #[arg(long, value_name = "MM", default_value_t = 0.01)]
+    pub tolerance: f64,
+}
+
+/// `poa five-axis`'s flags.
+#[derive(clap::Args)]
+pub struct FiveAxisArgs {
+    /// Workpiece path: G-code with `; NORMAL i j k` comments, or a CSV of x,y,z,i,j,k,e.
+    #[arg(value_name = "IN")]
+    pub file: PathBuf,
+    #[arg(short, long, value_name = "OUT")]
+    pub output: PathBuf,
+    /// A machine file (YAML) or a built-in name (`poa machines`).
+    #[arg(long, value_name = "M.yaml|NAME")]
+    pub machine: String,
+    #[command(flatten)]
+    pub joints: JointArgs,
+}
+
+/// `poa sweep`'s flags.
+#[derive(clap::Args)]
+#[command(group(clap::ArgGroup::new("line").required(true).args(["curve", "preset"])))]
+pub struct SweepArgs {
+    /// The structural line: a CSV of x,y,z points (mm), starting at the bed going up.
+    #[arg(long, value_name = "CURVE.csv")]
+    pub curve: Option<PathBuf>,
+    /// A built-in line: arc:R,ANGLE or s-curve:R,ANGLE (mm, degrees).
+    #[arg(long, value_name = "SHAPE")]
+    pub preset: Option<String>,
+    /// The cross-section: circle:D or rect:W,H (mm).
+    #[arg(long, value_name = "SHAPE")]
+    pub section: String,
+    #[arg(short, long, value_name = "OUT")]
+    pub output: PathBuf,
+    /// Bead width, mm.
+    #[arg(long, value_name = "MM", default_value_t = 0.45)]
+    pub width: f64,
+    /// Layer step measured on the line, mm.
+    #[arg(long = "layer-height", value_name = "MM", default_value_t = 0.2)]
+    pub layer_height: f64,
+    /// Filament diameter, mm.
+    #[arg(long, value_name = "MM", default_value_t = 1.75)]
+    pub filament: f64,
+    /// Where the line starts on the bed, `X,Y` mm.
+    #[arg(long, value_name = "X,Y", default_value = "125,105")]
+    pub at: String,
+    /// Write joint G-code for this machine instead of the workpiece path.
+    #[arg(long, value_name = "M.yaml|NAME")]
+    pub machine: Option<String>,
+    /// Also write the swept part as an STL (to slice it the three-axis way and compare).
+    #[arg(long, value_name = "PART.stl")]
+    pub stl: Option<PathBuf>,
+    #[command(flatten)]
+    pub joints: JointArgs,
+}
+
+impl JointArgs {
+    pub fn convert(&self) -> printonair::fiveaxis::Convert {
+        printonair::fiveaxis::Convert {
+            speed: self.speed,
+            feed: match self.feed {
+                FeedArg::Tip => printonair::fiveaxis::Feed::Tip,
+                FeedArg::InverseTime => printonair::fiveaxis::Feed::InverseTime,
+            },
+            tolerance: self.tolerance,
+        }
+    }
 }

@@ -8,7 +8,9 @@ use printonair::emit::ProcessReport;
 use printonair::rewrite::{self, Request};
 use printonair::{input, output, preview, report};
 
-use crate::args::{CheckArgs, DeformArgs, DetectArgs, RewriteArgs, TextureArgs};
+use crate::args::{
+    CheckArgs, DeformArgs, DetectArgs, FiveAxisArgs, RewriteArgs, SweepArgs, TextureArgs,
+};
 use crate::print::{
     emit, emit_json, error_text, skipped_line, summary_line, verbose_lines, write_stdout,
 };
@@ -638,6 +640,139 @@ pub fn texture(args: TextureArgs) -> anyhow::Result<ExitCode> {
             printonair::estimate::format_dhms(t.time_in),
             printonair::estimate::format_dhms(t.time_out),
         ))?;
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `poa machines [NAME]`.
+pub fn machines(name: Option<&str>) -> anyhow::Result<ExitCode> {
+    use printonair::fiveaxis::kinematics::{Machine, BUILT_INS};
+    match name {
+        None => {
+            let mut t = String::from(
+                "built-in five-axis machines (poa machines NAME prints one to copy):\n",
+            );
+            for (n, yaml) in BUILT_INS {
+                let m = Machine::from_yaml(yaml)?;
+                t.push_str(&format!(
+                    "  {n:<8} {:?} layout, {:?}, tilt {} [{}, {}] deg\n",
+                    m.layout, m.flavour, m.tilt_letter, m.limit_tilt[0], m.limit_tilt[1]
+                ));
+            }
+            write_stdout(&t)?;
+        }
+        Some(n) => {
+            let Some((_, yaml)) = BUILT_INS.iter().find(|(b, _)| *b == n) else {
+                let names: Vec<&str> = BUILT_INS.iter().map(|(b, _)| *b).collect();
+                anyhow::bail!(
+                    "no built-in machine `{n}`; the built-ins are {}",
+                    names.join(", ")
+                );
+            };
+            write_stdout(yaml)?;
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Joint G-code from a workpiece path, written atomically; a one-line summary.
+fn write_joints(
+    path: &[printonair::fiveaxis::sweep::PathPoint],
+    machine: &str,
+    set: &printonair::fiveaxis::Convert,
+    out: &Path,
+    inputs: &[&Path],
+) -> anyhow::Result<()> {
+    use printonair::fiveaxis::{convert, kinematics::Machine};
+    let m = Machine::load(machine)?;
+    let c = convert(path, &m, set)?;
+    output::write_bytes(out, inputs, c.text.as_bytes())?;
+    let tilts: Vec<f64> = c.poses.iter().map(|(j, _, _)| m.written(j).0).collect();
+    let lo = tilts.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = tilts.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    write_stdout(&format!(
+        "{}: {} joint moves for `{}`, {} from {lo:.1} to {hi:.1} deg; {} and {:.0} mm of filament at {} mm/s\n",
+        out.display(),
+        c.moves,
+        m.name,
+        m.tilt_letter,
+        printonair::estimate::format_dhms(c.time_s),
+        c.filament_mm,
+        set.speed
+    ))?;
+    Ok(())
+}
+
+/// `poa five-axis`.
+pub fn five_axis(args: FiveAxisArgs) -> anyhow::Result<ExitCode> {
+    output::check_not_input(&args.output, &[&args.file])?;
+    let data = input::read_all(&args.file)?;
+    let is_csv = args
+        .file
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("csv"));
+    let path = if is_csv {
+        printonair::fiveaxis::path_from_csv(&String::from_utf8_lossy(&data))
+    } else {
+        printonair::fiveaxis::path_from_gcode(&data)
+    }
+    .map_err(|e| anyhow::anyhow!("{}: {e}", args.file.display()))?;
+    write_joints(
+        &path,
+        &args.machine,
+        &args.joints.convert(),
+        &args.output,
+        &[&args.file],
+    )?;
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `poa sweep`.
+pub fn sweep(args: SweepArgs) -> anyhow::Result<ExitCode> {
+    use printonair::fiveaxis::sweep::{sweep, Curve, Section, SweepSettings};
+    let mut inputs: Vec<&Path> = Vec::new();
+    let curve = match (&args.curve, &args.preset) {
+        (Some(p), None) => {
+            inputs.push(p);
+            let data = input::read_all(p)?;
+            Curve::csv(&String::from_utf8_lossy(&data))?
+        }
+        (None, Some(preset)) => Curve::preset(preset)?,
+        _ => anyhow::bail!("give one of --curve, --preset"),
+    };
+    output::check_not_input(&args.output, &inputs)?;
+    let at = crate::parse_numbers(&args.at, 2, "--at")?;
+    anyhow::ensure!(
+        args.filament.is_finite() && (1.0..=3.5).contains(&args.filament),
+        "--filament {}: 1 to 3.5 mm",
+        args.filament
+    );
+    let set = SweepSettings {
+        width: args.width,
+        height: args.layer_height,
+        filament_area: printonair::layers::filament_area(args.filament),
+        at: [at[0], at[1]],
+    };
+    let section = Section::parse(&args.section)?;
+    let path = sweep(&curve, section, &set)?;
+    if let Some(stl) = &args.stl {
+        output::check_not_input(stl, &inputs)?;
+        let mesh = printonair::fiveaxis::sweep::stl(&curve, section, set.at);
+        output::write_bytes(stl, &inputs, mesh.as_bytes())?;
+    }
+    match &args.machine {
+        Some(m) => write_joints(&path, m, &args.joints.convert(), &args.output, &inputs)?,
+        None => {
+            let text = printonair::fiveaxis::workpiece_gcode(&path, args.joints.speed);
+            output::write_bytes(&args.output, &inputs, text.as_bytes())?;
+            let layers = path.last().map_or(0, |p| p.layer + 1);
+            write_stdout(&format!(
+                "{}: {layers} layers normal to a {:.1} mm line, {} points, one continuous path (give --machine for joint G-code)\n",
+                args.output.display(),
+                curve.length(),
+                path.len()
+            ))?;
+        }
     }
     Ok(ExitCode::SUCCESS)
 }

@@ -143,6 +143,9 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Check(args) => commands::check(args),
         Command::Deform(args) => commands::deform(args),
         Command::Texture(args) => commands::texture(args),
+        Command::Machines { name } => commands::machines(name.as_deref()),
+        Command::FiveAxis(args) => commands::five_axis(args),
+        Command::Sweep(args) => commands::sweep(args),
         Command::Preview {
             file,
             compare: Some(original),
