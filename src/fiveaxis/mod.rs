@@ -48,6 +48,8 @@ pub struct Converted {
     pub moves: usize,
     pub time_s: f64,
     pub filament_mm: f64,
+    /// For each move: end time (s), tilt and turn as written (deg), tip speed (mm/s).
+    pub timeline: Vec<[f64; 4]>,
 }
 
 fn lerp3(a: V3, b: V3, f: f64) -> V3 {
@@ -162,6 +164,7 @@ pub fn convert(path: &[PathPoint], m: &Machine, set: &Convert) -> Result<Convert
         fmt_num(60.0 * set.speed, 0)
     ));
     let (mut moves, mut time, mut filament) = (0usize, 0.0, 0.0);
+    let mut timeline = Vec::new();
     for i in 1..path.len() {
         let (a, b) = (&path[i - 1], &path[i]);
         let len = dist(a.p, b.p);
@@ -233,6 +236,8 @@ pub fn convert(path: &[PathPoint], m: &Machine, set: &Convert) -> Result<Convert
             moves += 1;
             time += secs;
             filament += e;
+            let (t_deg, c_deg) = m.written(&next);
+            timeline.push([time, t_deg, c_deg, tip / secs.max(1e-9)]);
             j = next;
         }
     }
@@ -245,6 +250,7 @@ pub fn convert(path: &[PathPoint], m: &Machine, set: &Convert) -> Result<Convert
         moves,
         time_s: time,
         filament_mm: filament,
+        timeline,
     })
 }
 
@@ -409,6 +415,253 @@ pub fn replay(text: &str, m: &Machine) -> Vec<Joints> {
         out.push(m.from_written([cur[0], cur[1], cur[2]], cur[3], cur[4]));
     }
     out
+}
+
+/// An HTML page with the workpiece path in 3D projection (layers coloured by index, the
+/// deposition direction drawn every `every` layers) and, with joint G-code, the rotary axes
+/// and the tip speed against time.
+pub fn preview_page(
+    path: &[PathPoint],
+    conv: Option<(&Converted, &Machine)>,
+    title: &str,
+) -> String {
+    use std::fmt::Write as _;
+    // Orthographic view from the front-right, a little above.
+    let (az, el) = (35f64.to_radians(), 20f64.to_radians());
+    let view = |p: V3| {
+        let x = p[0] * az.cos() + p[1] * az.sin();
+        let y = -p[0] * az.sin() + p[1] * az.cos();
+        [x, p[2] * el.cos() - y * el.sin()]
+    };
+    let pts: Vec<[f64; 2]> = path.iter().map(|p| view(p.p)).collect();
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for q in &pts {
+        for i in 0..2 {
+            lo[i] = lo[i].min(q[i]);
+            hi[i] = hi[i].max(q[i]);
+        }
+    }
+    let size = 560.0;
+    let span = (hi[0] - lo[0]).max(hi[1] - lo[1]).max(1.0) * 1.1;
+    let k = size / span;
+    let tx = |q: [f64; 2]| [(q[0] - lo[0]) * k + 20.0, size - (q[1] - lo[1]) * k + 20.0];
+    let layers = path.last().map_or(1, |p| p.layer + 1).max(1);
+    let mut body = String::new();
+    let mut i = 0;
+    while i < path.len() {
+        let layer = path[i].layer;
+        let mut d = String::new();
+        while i < path.len() && path[i].layer == layer {
+            let q = tx(pts[i]);
+            let _ = write!(
+                d,
+                "{}{:.1} {:.1} ",
+                if d.is_empty() { "M" } else { "L" },
+                q[0],
+                q[1]
+            );
+            i += 1;
+        }
+        let hue = 240.0 - 240.0 * layer as f64 / layers as f64;
+        let _ = write!(
+            body,
+            r#"<path d="{d}" fill="none" stroke="hsl({hue:.0},70%,45%)" stroke-width="0.6"/>"#
+        );
+    }
+    let every = (layers / 12).max(1);
+    let mut drawn = usize::MAX;
+    // One arrow at the first point of every `every`-th layer.
+    for p in path.iter().filter(|p| p.layer % every == 0) {
+        if p.layer == drawn {
+            continue;
+        }
+        drawn = p.layer;
+        let a = tx(view(p.p));
+        let b = tx(view([
+            p.p[0] + 4.0 * p.n[0],
+            p.p[1] + 4.0 * p.n[1],
+            p.p[2] + 4.0 * p.n[2],
+        ]));
+        let _ = write!(
+            body,
+            r##"<line x1="{:.1}" y1="{:.1}" x2="{:.1}" y2="{:.1}" stroke="#222" stroke-width="1.2"/><circle cx="{:.1}" cy="{:.1}" r="2" fill="#222"/>"##,
+            a[0], a[1], b[0], b[1], b[0], b[1]
+        );
+    }
+    let work = format!(
+        r##"<svg xmlns="http://www.w3.org/2000/svg" width="600" height="600" viewBox="0 0 600 600"><rect width="100%" height="100%" fill="#fff"/>{body}<text x="8" y="16" font-family="sans-serif" font-size="13">workpiece path: {layers} layers, blue first to red last; black: deposition direction every {every} layers</text></svg>"##
+    );
+    let joints = match conv {
+        None => String::new(),
+        Some((c, m)) => {
+            let t_end = c.timeline.last().map_or(1.0, |x| x[0]).max(1e-9);
+            let plot = |col: usize, label: &str, colour: &str| {
+                let (mut a, mut b) = (f64::INFINITY, f64::NEG_INFINITY);
+                for x in &c.timeline {
+                    a = a.min(x[col]);
+                    b = b.max(x[col]);
+                }
+                let span = (b - a).max(1e-9);
+                let mut d = String::new();
+                let stride = (c.timeline.len() / 2000).max(1);
+                for x in c.timeline.iter().step_by(stride) {
+                    let px = 50.0 + 540.0 * x[0] / t_end;
+                    let py = 150.0 - 130.0 * (x[col] - a) / span;
+                    let _ = write!(
+                        d,
+                        "{}{px:.1} {py:.1} ",
+                        if d.is_empty() { "M" } else { "L" }
+                    );
+                }
+                format!(
+                    r##"<svg xmlns="http://www.w3.org/2000/svg" width="600" height="170" viewBox="0 0 600 170"><rect width="100%" height="100%" fill="#fff"/><path d="{d}" fill="none" stroke="{colour}" stroke-width="1"/><text x="4" y="14" font-family="sans-serif" font-size="12">{label}: {a:.1} to {b:.1} over {t_end:.0} s</text></svg>"##
+                )
+            };
+            format!(
+                "<h2>Joints against time</h2>\n{}<br>{}<br>{}\n",
+                plot(1, &format!("{} (tilt, deg)", m.tilt_letter), "#1f77b4"),
+                plot(2, &format!("{} (turn, deg)", m.turn_letter), "#d62728"),
+                plot(3, "tip speed (mm/s)", "#2ca02c")
+            )
+        }
+    };
+    format!(
+        "<!doctype html>\n<html><head><meta charset=\"utf-8\"><title>{t}</title><style>body{{font-family:sans-serif;margin:1em}}</style></head><body>\n<h1>{t}</h1>\n{work}\n{joints}</body></html>\n",
+        t = crate::preview::escape(title)
+    )
+}
+
+/// What replaying joint G-code in the workpiece frame found (`poa check --machine`).
+#[derive(Debug, Clone, Default, serde::Serialize)]
+pub struct Replayed {
+    pub moves: usize,
+    /// Length printed, along the workpiece (mm).
+    pub length_mm: f64,
+    /// Points judged (every quarter width of printed path).
+    pub points: usize,
+    /// Of those, with no earlier material within reach and not on the bed.
+    pub unsupported: usize,
+    pub in_air_mm: f64,
+    pub first_unsupported: Option<V3>,
+    /// Tilt and turn as written (deg), smallest and largest.
+    pub tilt_deg: [f64; 2],
+    pub turn_deg: [f64; 2],
+    /// Poses outside the machine's joint limits.
+    pub outside_limits: usize,
+}
+
+/// Replays joint G-code written for `m` in the workpiece frame and judges it like a
+/// layer-less print: each point of printed path must have earlier material within reach
+/// (`max(1.5 x 1.05 h, 0.75 w)`: layers are up to 1.5 h thick outside a bend), its own last
+/// four widths excluded, or lie on the bed (workpiece z within h).
+pub fn check_joints(text: &str, m: &Machine, width: f64, height: f64) -> Replayed {
+    use rustc_hash::FxHashMap;
+    let reach = (1.5 * 1.05 * height).max(0.75 * width);
+    let step = (width / 4.0).max(0.02);
+    let guard = 4.0 * width;
+    let key = |p: V3| {
+        (
+            (p[0] / reach).floor() as i64,
+            (p[1] / reach).floor() as i64,
+            (p[2] / reach).floor() as i64,
+        )
+    };
+    let mut grid: FxHashMap<(i64, i64, i64), Vec<V3>> = FxHashMap::default();
+    let mut pending: std::collections::VecDeque<(f64, V3)> = Default::default();
+    let mut r = Replayed {
+        tilt_deg: [f64::INFINITY, f64::NEG_INFINITY],
+        turn_deg: [f64::INFINITY, f64::NEG_INFINITY],
+        ..Default::default()
+    };
+    let mut cur = [0.0f64; 5];
+    let mut prev: Option<Joints> = None;
+    let mut along = 0.0;
+    let mut absolute_e = false;
+    let mut last_e = 0.0;
+    for line in text.lines() {
+        let code = line.split(';').next().unwrap_or("").trim();
+        match code {
+            "M82" => absolute_e = true,
+            "M83" => absolute_e = false,
+            _ => {}
+        }
+        if !code.starts_with("G1 ") && !code.starts_with("G0 ") {
+            continue;
+        }
+        let mut e = 0.0;
+        for word in code.split_whitespace().skip(1) {
+            let (l, v) = word.split_at(1);
+            let Ok(v) = v.parse::<f64>() else { continue };
+            match l.chars().next().unwrap_or(' ') {
+                'X' => cur[0] = v,
+                'Y' => cur[1] = v,
+                'Z' => cur[2] = v,
+                'E' => {
+                    e = if absolute_e { v - last_e } else { v };
+                    if absolute_e {
+                        last_e = v;
+                    }
+                }
+                c if c == m.tilt_letter => cur[3] = v,
+                c if c == m.turn_letter => cur[4] = v,
+                _ => {}
+            }
+        }
+        r.tilt_deg = [r.tilt_deg[0].min(cur[3]), r.tilt_deg[1].max(cur[3])];
+        r.turn_deg = [r.turn_deg[0].min(cur[4]), r.turn_deg[1].max(cur[4])];
+        let within = |v: f64, l: [f64; 2]| v >= l[0] - 1e-6 && v <= l[1] + 1e-6;
+        if !(within(cur[0], m.limit_x)
+            && within(cur[1], m.limit_y)
+            && within(cur[2], m.limit_z)
+            && within(cur[3], m.limit_tilt)
+            && within(cur[4], m.limit_turn))
+        {
+            r.outside_limits += 1;
+        }
+        let j = m.from_written([cur[0], cur[1], cur[2]], cur[3], cur[4]);
+        let Some(p0) = prev.replace(j) else {
+            continue;
+        };
+        r.moves += 1;
+        if e <= 0.0 {
+            continue;
+        }
+        let (a, b) = (m.forward(&p0).0, m.forward(&j).0);
+        let len = dist(a, b);
+        r.length_mm += len;
+        let n = ((len / step).ceil() as usize).clamp(1, 1_000_000);
+        for i in 1..=n {
+            let f = i as f64 / n as f64;
+            let p = m.forward(&lerp_joints(&p0, &j, f)).0;
+            along += len / n as f64;
+            while pending.front().is_some_and(|(l, _)| *l < along - guard) {
+                let (_, q) = pending.pop_front().unwrap();
+                grid.entry(key(q)).or_default().push(q);
+            }
+            r.points += 1;
+            let k = key(p);
+            let mut supported = p[2] <= height + 0.05;
+            'search: for dx in -1..=1 {
+                for dy in -1..=1 {
+                    for dz in -1..=1 {
+                        if supported {
+                            break 'search;
+                        }
+                        if let Some(v) = grid.get(&(k.0 + dx, k.1 + dy, k.2 + dz)) {
+                            supported = v.iter().any(|q| dist(*q, p) <= reach);
+                        }
+                    }
+                }
+            }
+            if !supported {
+                r.unsupported += 1;
+                r.in_air_mm += len / n as f64;
+                r.first_unsupported.get_or_insert(p);
+            }
+            pending.push_back((along, p));
+        }
+    }
+    r
 }
 
 #[cfg(test)]

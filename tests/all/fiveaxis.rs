@@ -386,3 +386,69 @@ fn five_axis_beats_three_axis_with_supports_on_the_arc_tube_as_in_the_paper() {
         "five-axis {t5:.0} s {f5:.0} mm, three-axis {t3:.0} s {f3:.0} mm"
     );
 }
+
+#[test]
+fn poa_check_replays_joint_gcode_and_the_preview_draws_path_and_joints() {
+    let dir = tempfile::tempdir().unwrap();
+    let joints = dir.path().join("s.gcode");
+    let prev = dir.path().join("prev");
+    let o = poa()
+        .args([
+            "sweep",
+            "--preset",
+            "s-curve:40,45",
+            "--section",
+            "rect:8,6",
+            "--machine",
+            "sfam",
+            "--preview",
+        ])
+        .arg(&prev)
+        .arg("-o")
+        .arg(&joints)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let page = std::fs::read_to_string(prev.join("index.html")).unwrap();
+    assert_eq!(
+        page.matches("<svg").count(),
+        4,
+        "path and three joint plots"
+    );
+    assert!(page.contains("B (tilt, deg)") && page.contains("tip speed"));
+    // Replayed on the workpiece: every point rests on earlier material or the bed.
+    let c = poa()
+        .args(["check", "--json", "--machine", "sfam"])
+        .arg(&joints)
+        .output()
+        .unwrap();
+    assert!(c.status.success(), "{}", String::from_utf8_lossy(&c.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&c.stdout).unwrap();
+    assert_eq!(v["unsupported"], 0, "{v}");
+    assert_eq!(v["outside_limits"], 0, "{v}");
+    assert!(
+        v["points"].as_u64().unwrap() > 10_000 && v["tilt_deg"][1].as_f64().unwrap() > 40.0,
+        "{v}"
+    );
+    // The same file with every tilt doubled leans layers off the ones below: found.
+    let text = std::fs::read_to_string(&joints).unwrap();
+    let bent: String = text
+        .lines()
+        .map(|l| match l.split_once(" B") {
+            Some((head, rest)) if l.starts_with("G1 ") => {
+                let (b, tail) = rest.split_once(' ').unwrap_or((rest, ""));
+                format!("{head} B{} {tail}\n", b.parse::<f64>().unwrap() * 2.0)
+            }
+            _ => format!("{l}\n"),
+        })
+        .collect();
+    let bad = dir.path().join("bent.gcode");
+    std::fs::write(&bad, bent).unwrap();
+    let c = poa()
+        .args(["check", "--json", "--machine", "sfam"])
+        .arg(&bad)
+        .output()
+        .unwrap();
+    let v: serde_json::Value = serde_json::from_slice(&c.stdout).unwrap();
+    assert!(v["unsupported"].as_u64().unwrap() > 100, "{v}");
+}

@@ -183,6 +183,20 @@ pub struct CheckArgs {
     /// Where --svg-layer writes its SVG.
     #[arg(short, long, value_name = "OUT.svg")]
     pub output: Option<PathBuf>,
+    /// The file is five-axis joint G-code for this machine: replay it in the workpiece
+    /// frame and judge every point against earlier material.
+    #[arg(long, value_name = "M.yaml|NAME")]
+    pub machine: Option<String>,
+    /// Bead width and layer step of a five-axis file (with --machine), mm.
+    #[arg(long, value_name = "MM", default_value_t = 0.45, requires = "machine")]
+    pub width: f64,
+    #[arg(
+        long = "layer-height",
+        value_name = "MM",
+        default_value_t = 0.2,
+        requires = "machine"
+    )]
+    pub layer_height: f64,
 }
 
 #[derive(Subcommand)]
@@ -691,6 +705,9 @@ pub struct SweepArgs {
     /// Also write the swept part as an STL (to slice it the three-axis way and compare).
     #[arg(long, value_name = "PART.stl")]
     pub stl: Option<PathBuf>,
+    /// Write an HTML page with the path in 3D and, with --machine, the joints against time.
+    #[arg(long, value_name = "DIR")]
+    pub preview: Option<PathBuf>,
     #[command(flatten)]
     pub joints: JointArgs,
 }

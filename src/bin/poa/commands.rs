@@ -32,7 +32,13 @@ pub fn check(args: CheckArgs) -> anyhow::Result<ExitCode> {
         compare,
         svg_layer,
         output: svg_out,
+        machine,
+        width,
+        layer_height,
     } = args;
+    if let Some(m) = machine {
+        return check_joints(&file, &m, width, layer_height, json, fail_in_air);
+    }
     anyhow::ensure!(
         (0.0..0.5).contains(&overlap_min),
         "--overlap-min must be between 0 and 0.5"
@@ -682,11 +688,20 @@ fn write_joints(
     set: &printonair::fiveaxis::Convert,
     out: &Path,
     inputs: &[&Path],
+    preview: Option<&Path>,
 ) -> anyhow::Result<()> {
     use printonair::fiveaxis::{convert, kinematics::Machine};
     let m = Machine::load(machine)?;
     let c = convert(path, &m, set)?;
     output::write_bytes(out, inputs, c.text.as_bytes())?;
+    if let Some(dir) = preview {
+        let page = printonair::fiveaxis::preview_page(
+            path,
+            Some((&c, &m)),
+            &format!("poa five-axis: {}", out.display()),
+        );
+        write_page(dir, inputs, &page)?;
+    }
     let tilts: Vec<f64> = c.poses.iter().map(|(j, _, _)| m.written(j).0).collect();
     let lo = tilts.iter().copied().fold(f64::INFINITY, f64::min);
     let hi = tilts.iter().copied().fold(f64::NEG_INFINITY, f64::max);
@@ -723,6 +738,7 @@ pub fn five_axis(args: FiveAxisArgs) -> anyhow::Result<ExitCode> {
         &args.joints.convert(),
         &args.output,
         &[&args.file],
+        None,
     )?;
     Ok(ExitCode::SUCCESS)
 }
@@ -761,10 +777,25 @@ pub fn sweep(args: SweepArgs) -> anyhow::Result<ExitCode> {
         output::write_bytes(stl, &inputs, mesh.as_bytes())?;
     }
     match &args.machine {
-        Some(m) => write_joints(&path, m, &args.joints.convert(), &args.output, &inputs)?,
+        Some(m) => write_joints(
+            &path,
+            m,
+            &args.joints.convert(),
+            &args.output,
+            &inputs,
+            args.preview.as_deref(),
+        )?,
         None => {
             let text = printonair::fiveaxis::workpiece_gcode(&path, args.joints.speed);
             output::write_bytes(&args.output, &inputs, text.as_bytes())?;
+            if let Some(dir) = &args.preview {
+                let page = printonair::fiveaxis::preview_page(
+                    &path,
+                    None,
+                    &format!("poa sweep: {}", args.output.display()),
+                );
+                write_page(dir, &inputs, &page)?;
+            }
             let layers = path.last().map_or(0, |p| p.layer + 1);
             write_stdout(&format!(
                 "{}: {layers} layers normal to a {:.1} mm line, {} points, one continuous path (give --machine for joint G-code)\n",
@@ -775,4 +806,67 @@ pub fn sweep(args: SweepArgs) -> anyhow::Result<ExitCode> {
         }
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// `poa check --machine M FILE`: five-axis joint G-code replayed in the workpiece frame.
+fn check_joints(
+    file: &Path,
+    machine: &str,
+    width: f64,
+    height: f64,
+    json: bool,
+    fail_in_air: Option<f64>,
+) -> anyhow::Result<ExitCode> {
+    use printonair::fiveaxis::{check_joints, kinematics::Machine};
+    anyhow::ensure!(
+        (0.1..=3.0).contains(&width) && (0.02..=width).contains(&height),
+        "--width {width} --layer-height {height}: width 0.1-3 mm, height 0.02 mm up to the width"
+    );
+    let m = Machine::load(machine)?;
+    let data = input::read_all(file)?;
+    let r = check_joints(&String::from_utf8_lossy(&data), &m, width, height);
+    if json {
+        emit_json(&r)?;
+    } else {
+        write_stdout(&format!(
+            "{}: five-axis joint G-code for `{}`, replayed on the workpiece: {} moves, {:.0} mm printed; {} of {} points unsupported ({:.1} mm in air){}; {} from {:.1} to {:.1} deg, {} from {:.1} to {:.1} deg; {} poses outside the limits\n",
+            file.display(),
+            m.name,
+            r.moves,
+            r.length_mm,
+            r.unsupported,
+            r.points,
+            r.in_air_mm,
+            r.first_unsupported
+                .map(|p| format!(", the first at {:.3} {:.3} {:.3}", p[0], p[1], p[2]))
+                .unwrap_or_default(),
+            m.tilt_letter,
+            r.tilt_deg[0],
+            r.tilt_deg[1],
+            m.turn_letter,
+            r.turn_deg[0],
+            r.turn_deg[1],
+            r.outside_limits
+        ))?;
+    }
+    if r.outside_limits > 0 || fail_in_air.is_some_and(|l| r.in_air_mm > l) {
+        return Ok(ExitCode::from(2));
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Writes `page` as `DIR/index.html` (the folder made if needed), never onto an input.
+fn write_page(dir: &Path, inputs: &[&Path], page: &str) -> anyhow::Result<()> {
+    output::check_not_input(dir, inputs)?;
+    anyhow::ensure!(
+        !dir.exists() || dir.is_dir(),
+        "--preview {}: not a folder (it writes index.html into one)",
+        dir.display()
+    );
+    std::fs::create_dir_all(dir).map_err(|source| printonair::Error::Write {
+        path: dir.to_path_buf(),
+        source,
+    })?;
+    write_file(&dir.join("index.html"), inputs, page)?;
+    Ok(())
 }
