@@ -70,6 +70,20 @@ pub struct Machine {
     pub limit_turn: [f64; 2],
     /// Fastest turn or tilt (deg/s).
     pub max_angular_speed: f64,
+    /// The hot end as the collision check sees it: a disk of this radius (mm, the heater
+    /// block and its fan duct) this high above the nozzle tip (mm). Optional.
+    #[serde(default = "default_hotend_radius")]
+    pub hotend_radius: f64,
+    #[serde(default = "default_hotend_height")]
+    pub hotend_height: f64,
+}
+
+fn default_hotend_radius() -> f64 {
+    12.0
+}
+
+fn default_hotend_height() -> f64 {
+    5.0
 }
 
 /// A pose in joint space: X, Y, Z (mm) and tilt, turn (radians, machine sense, before sign
@@ -106,6 +120,8 @@ limit_z: [0.0, 200.0]
 limit_tilt: [-100.0, 100.0]       # degrees
 limit_turn: [-36000.0, 36000.0]   # degrees: C turns without end stops, unwrapped
 max_angular_speed: 180.0          # deg/s
+hotend_radius: 12.0               # the hot end as a disk (mm) for the collision check ...
+hotend_height: 5.0                # ... this high above the nozzle tip (mm)
 ";
 
 /// An A/C machine (tilt about X), to show the second layout.
@@ -241,6 +257,14 @@ impl Machine {
         if !(self.tilt_zero.is_finite() && self.turn_zero.is_finite()) {
             return bad("tilt_zero and turn_zero must be numbers".into());
         }
+        for (key, v) in [
+            ("hotend_radius", self.hotend_radius),
+            ("hotend_height", self.hotend_height),
+        ] {
+            if !(v.is_finite() && (0.0..=200.0).contains(&v)) {
+                return bad(format!("{key}: {v} (mm, 0 to 200)"));
+            }
+        }
         if !(self.max_angular_speed.is_finite() && self.max_angular_speed > 0.0) {
             return bad(format!(
                 "max_angular_speed: {} (deg/s, more than 0)",
@@ -340,6 +364,15 @@ impl Machine {
             }
         }
         Ok(Joints { xyz, tilt, turn })
+    }
+
+    /// Clearance (mm) between the tilted bed's plane and the lowest point of the hot end's
+    /// disk when the nozzle tip is on workpiece point `p` at `tilt` (negative: the bed would
+    /// hit the hot end). The bed is the workpiece plane z = 0; tilting it by t brings it
+    /// `r sin t` up at `r` from the nozzle while the disk sits `H cos t` further along the
+    /// bed's normal.
+    pub fn clearance(&self, p: V3, tilt: f64) -> f64 {
+        p[2] + self.hotend_height * tilt.cos() - self.hotend_radius * tilt.sin().abs()
     }
 
     /// The workpiece point under the nozzle and the direction that is vertical, at `j`.
@@ -459,6 +492,10 @@ mod tests {
             (with("tilt_sign: 1 ", "tilt_sign: 2 "), "tilt_sign: 2"),
             (with("layout: bc", "layout: xy"), "layout"),
             (format!("{SFAM_YAML}extra: 1\n"), "extra"),
+            (
+                with("hotend_radius: 12.0", "hotend_radius: -1"),
+                "hotend_radius: -1",
+            ),
         ];
         for (yaml, want) in cases {
             let e = Machine::from_yaml(&yaml).unwrap_err().to_string();

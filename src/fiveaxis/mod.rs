@@ -196,6 +196,20 @@ pub fn convert(path: &[PathPoint], m: &Machine, set: &Convert) -> Result<Convert
             cur = end;
         }
         for (share, next, at_share) in pieces {
+            let p = lerp3(a.p, b.p, at_share);
+            let room = m.clearance(p, next.tilt);
+            if room < 0.0 {
+                return Err(at(
+                    i,
+                    Error::Refused(format!(
+                        "at a tilt of {:.1} deg the bed would meet the hot end ({:.1} mm short; hotend_radius {} mm, hotend_height {} mm)",
+                        next.tilt.to_degrees(),
+                        -room,
+                        m.hotend_radius,
+                        m.hotend_height
+                    )),
+                ));
+            }
             let tip = len * share;
             let secs = (tip / set.speed).max(
                 // The rotary axes' own speed limit.
@@ -228,11 +242,7 @@ pub fn convert(path: &[PathPoint], m: &Machine, set: &Convert) -> Result<Convert
                 word(&next),
                 fmt_num(feed, 3)
             ));
-            poses.push((
-                next,
-                lerp3(a.p, b.p, at_share),
-                unit(lerp3(a.n, b.n, at_share)).unwrap_or(b.n),
-            ));
+            poses.push((next, p, unit(lerp3(a.n, b.n, at_share)).unwrap_or(b.n)));
             moves += 1;
             time += secs;
             filament += e;

@@ -237,6 +237,19 @@ fn the_cli_slices_converts_and_refuses_bad_inputs_naming_the_value() {
             vec!["five-axis", work.to_str().unwrap(), "--machine", "nope"],
             "built-in machines",
         ),
+        // A short tight bend tilts the bed 53 degrees 6.5 mm above it: into the hot end.
+        (
+            vec![
+                "sweep",
+                "--preset",
+                "arc:10,90",
+                "--section",
+                "circle:4",
+                "--machine",
+                "sfam",
+            ],
+            "meet the hot end",
+        ),
     ];
     for (args, want) in cases {
         let o = poa().args(&args).arg("-o").arg(&out).output().unwrap();
