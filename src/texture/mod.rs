@@ -302,6 +302,81 @@ struct Survey {
     z_mid: f64,
 }
 
+/// The closed loops of a layer without role information that no other closed loop of the
+/// layer encloses (by bounding box): each island's outer wall.
+fn outermost_loops(paths: &[crate::layers::Path]) -> Vec<crate::layers::Path> {
+    if paths.iter().any(|p| p.role != Role::Unknown) {
+        return Vec::new();
+    }
+    let boxes: Vec<Option<[f64; 4]>> = paths
+        .iter()
+        .map(|p| {
+            let (a, b) = (p.points.first()?, p.points.last()?);
+            let closed =
+                (a[0] - b[0]).hypot(a[1] - b[1]) <= 2.0 * p.width.max(0.2) && p.length() > 5.0;
+            closed.then(|| {
+                p.points.iter().fold(
+                    [
+                        f64::INFINITY,
+                        f64::INFINITY,
+                        f64::NEG_INFINITY,
+                        f64::NEG_INFINITY,
+                    ],
+                    |r, q| {
+                        [
+                            r[0].min(q[0]),
+                            r[1].min(q[1]),
+                            r[2].max(q[0]),
+                            r[3].max(q[1]),
+                        ]
+                    },
+                )
+            })
+        })
+        .collect();
+    let inside = |a: &[f64; 4], b: &[f64; 4]| {
+        a[0] >= b[0] - 1e-6 && a[1] >= b[1] - 1e-6 && a[2] <= b[2] + 1e-6 && a[3] <= b[3] + 1e-6
+    };
+    // A skirt encloses loops but none of them closely (a wall's inner perimeter lies a width
+    // inside it): it is not a wall, and the loops inside it are candidates.
+    let gap = |a: &[f64; 4], b: &[f64; 4]| {
+        (b[0] - a[0])
+            .min(b[1] - a[1])
+            .min(a[2] - b[2])
+            .min(a[3] - b[3])
+    };
+    let boxes: Vec<Option<[f64; 4]>> = boxes
+        .iter()
+        .enumerate()
+        .map(|(i, a)| {
+            let a = (*a)?;
+            let w = paths[i].width.max(0.2);
+            let enclosed: Vec<f64> = boxes
+                .iter()
+                .enumerate()
+                .filter_map(|(j, b)| b.filter(|b| j != i && inside(b, &a) && *b != a))
+                .map(|b| gap(&a, &b))
+                .collect();
+            let skirt = !enclosed.is_empty() && enclosed.iter().all(|g| *g > 3.0 * w);
+            (!skirt).then_some(a)
+        })
+        .collect();
+    paths
+        .iter()
+        .zip(&boxes)
+        .enumerate()
+        .filter(|(i, (_, bx))| {
+            bx.as_ref().is_some_and(|a| {
+                !boxes
+                    .iter()
+                    .enumerate()
+                    .any(|(j, b)| j != *i && b.as_ref().is_some_and(|b| inside(a, b) && a != b))
+            })
+        })
+        .map(|(_, (p, _))| p.clone())
+        .collect()
+}
+
 /// Finds the moves of `roles` (by source line) and the walls they make.
 fn survey(text: &[u8], config: &SlicerConfig, roles: &[Role]) -> Result<Survey, Error> {
     let reader = LayerReader::new(
@@ -312,10 +387,18 @@ fn survey(text: &[u8], config: &SlicerConfig, roles: &[Role]) -> Result<Survey, 
         },
     );
     let mut paths: Vec<crate::layers::Path> = Vec::new();
+    // Files without role comments: each layer's outermost closed loops stand for the
+    // external perimeters (kept aside until the file turns out to have no roles at all).
+    let mut outermost: Vec<crate::layers::Path> = Vec::new();
+    let fallback = roles.contains(&Role::ExternalPerimeter);
     for layer in reader {
         let layer = layer.map_err(|e| Error::Invalid(format!("cannot read the file: {e}")))?;
         if layer.kind != LayerKind::Layer {
             continue;
+        }
+        // (Not on the first layer: a skirt of several loops, a brim, surround the part there.)
+        if fallback && paths.is_empty() && layer.index > 0 {
+            outermost.extend(outermost_loops(&layer.paths));
         }
         paths.extend(
             layer
@@ -323,6 +406,9 @@ fn survey(text: &[u8], config: &SlicerConfig, roles: &[Role]) -> Result<Survey, 
                 .into_iter()
                 .filter(|p| roles.contains(&p.role) && p.points.len() >= 2),
         );
+    }
+    if paths.is_empty() {
+        paths = outermost;
     }
     if paths.is_empty() {
         let names: Vec<&str> = roles.iter().map(|r| r.name()).collect();

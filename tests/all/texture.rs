@@ -319,13 +319,14 @@ fn bad_pictures_roles_ranges_and_files_get_one_line_and_nothing_written() {
         assert!(err.trim().lines().count() <= 2, "{err}");
         assert!(!out.exists(), "{args:?} wrote a file");
     }
-    // A file without external perimeters (no role comments): said, nothing written.
-    let o = poa_to(
-        "texture",
-        &sample("rect_overhang_nocomments.gcode"),
-        &out,
-        &["--pattern", "checker"],
-    );
+    // A file without external perimeters (only solid infill): said, nothing written.
+    let infill = dir.path().join("infill.gcode");
+    std::fs::write(
+        &infill,
+        ";LAYER_CHANGE\n;Z:0.2\n;HEIGHT:0.2\nM83\nG1 Z0.2 F600\n;TYPE:Solid infill\n;WIDTH:0.45\nG1 X10 Y10 F3000\nG1 X30 Y10 E0.7 F1500\nG1 X30 Y10.4 E0.02\nG1 X10 Y10.4 E0.7\n",
+    )
+    .unwrap();
+    let o = poa_to("texture", &infill, &out, &["--pattern", "checker"]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(
         !o.status.success() && err.contains("no external perimeter"),
@@ -388,4 +389,52 @@ fn slicer_mode_rewrites_and_textures_in_one_run_or_leaves_the_file_alone() {
         .unwrap();
     assert!(!o.status.success());
     assert_eq!(read(&file), original);
+}
+
+#[test]
+fn without_role_comments_each_islands_outer_loop_is_textured() {
+    use printonair::texture::Source;
+    // The same slice with and without its comments: the outermost loops found in the plain
+    // file are (nearly) the external perimeters the comments name, never the skirt.
+    let with = read(&sample("rect_overhang_prusa_rel.gcode"));
+    let plain = read(&sample("rect_overhang_nocomments.gcode"));
+    let ends = |text: &[u8]| -> std::collections::HashSet<(i64, i64, i64)> {
+        let config = SlicerConfig::parse(text);
+        let totals = printonair::progress::Totals::of(&config);
+        let t = printonair::texture::texture_text(
+            text,
+            &config,
+            &spec(Source::Checker, "wrap"),
+            totals,
+        )
+        .unwrap();
+        t.pieces
+            .iter()
+            .map(|p| {
+                (
+                    (p.to[0] * 100.0).round() as i64,
+                    (p.to[1] * 100.0).round() as i64,
+                    (p.to[2] * 100.0).round() as i64,
+                )
+            })
+            .collect()
+    };
+    let (a, b) = (ends(&with), ends(&plain));
+    // The first layer (where a skirt of two loops surrounds the part) is left alone.
+    assert!(
+        b.iter().all(|p| p.2 > 30),
+        "a first-layer loop was textured"
+    );
+    let a: std::collections::HashSet<_> = a.into_iter().filter(|p| p.2 > 30).collect();
+    let common = a.intersection(&b).count() as f64;
+    assert!(
+        common >= 0.9 * a.len() as f64,
+        "{common} of {} perimeter pieces found",
+        a.len()
+    );
+    assert!(
+        common >= 0.85 * b.len() as f64,
+        "{} pieces textured, {common} on perimeters",
+        b.len()
+    );
 }
