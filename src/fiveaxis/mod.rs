@@ -19,6 +19,12 @@ use crate::writer::{fmt_e, fmt_mm, fmt_num};
 use kinematics::{unit, Flavour, Joints, Machine, V3};
 use sweep::PathPoint;
 
+/// Halvings of one segment at most (65,536 pieces): past that the tip's deviation comes from
+/// a flip of the joints, not from the segment's length, and more pieces would not help.
+const MAX_DEPTH: usize = 16;
+/// Most joint moves a conversion writes (the file is made in memory).
+pub const MAX_MOVES: usize = 50_000_000;
+
 /// How F is written.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Feed {
@@ -186,7 +192,7 @@ pub fn convert(path: &[PathPoint], m: &Machine, set: &Convert) -> Result<Convert
                 .iter()
                 .map(|q| to_segment(m.forward(&lerp_joints(&cur, &end, *q)).0, a.p, b.p))
                 .fold(0.0f64, f64::max);
-            if off > set.tolerance && depth < 24 {
+            if off > set.tolerance && depth < MAX_DEPTH {
                 let mid = (f0 + f1) / 2.0;
                 stack.push((mid, f1, depth + 1));
                 stack.push((f0, mid, depth + 1));
@@ -194,6 +200,11 @@ pub fn convert(path: &[PathPoint], m: &Machine, set: &Convert) -> Result<Convert
             }
             pieces.push((f1 - f0, end, f1));
             cur = end;
+        }
+        if moves + pieces.len() > MAX_MOVES {
+            return Err(Error::Refused(format!(
+                "more than {MAX_MOVES} joint moves: the path is too long or the tolerance too fine; nothing written"
+            )));
         }
         for (share, next, at_share) in pieces {
             let p = lerp3(a.p, b.p, at_share);

@@ -400,6 +400,13 @@ pub fn sweep(
     }
     let length = curve.length();
     let layers = (length / h).floor() as usize;
+    let contour = section.contour(w / 2.0, 0.5);
+    let per_layer = contour.len() as f64 + 2.0 * (2.0 * section.reach() / w + 2.0);
+    if layers as f64 * per_layer > 20e6 {
+        return Err(Error::Invalid(format!(
+            "{layers} layers of about {per_layer:.0} points: more than 20 million; use a thicker step, a smaller section or a shorter line"
+        )));
+    }
     if layers == 0 {
         return Err(Error::Invalid(format!(
             "the line is {length:.2} mm long, shorter than one step"
@@ -407,7 +414,6 @@ pub fn sweep(
     }
     let base = [set.at[0], set.at[1], 0.0];
     let mut out: Vec<PathPoint> = Vec::new();
-    let contour = section.contour(w / 2.0, 0.5);
     let m = contour.len() - 1;
     for k in 0..layers {
         let s = (k as f64 + 1.0) * h;

@@ -14,9 +14,10 @@
 //!   (E / (length / F)) x the piece's time *as poa's estimator plans the output* (with the
 //!   file's acceleration and jerk), so E per second stays the slicer's along the path
 //!   whatever the acceleration does. `--mode velocity` keeps E per mm and changes only F.
-//! - Speeds stay within the range; a piece is never wider than twice the nozzle (its speed
-//!   is raised until it is not) nor, in velocity mode, above `--max-flow`; no piece is
-//!   shorter than the firmware takes at [`MAX_MOVES_PER_S`].
+//! - Speeds stay within the range; within it, a piece is never wider than twice the nozzle
+//!   (its speed is raised until it is not, at most to the top of the range) nor, in velocity
+//!   mode, above `--max-flow`; no piece is shorter than the firmware takes at
+//!   [`MAX_MOVES_PER_S`].
 
 pub mod font;
 
@@ -34,6 +35,8 @@ use crate::writer::MmPerMin;
 pub const MAX_MOVES_PER_S: f64 = 200.0;
 /// Largest picture taken (pixels a side).
 pub const MAX_IMAGE_SIDE: u32 = 8192;
+/// Most pieces a texture writes (each holds about 100 bytes while the file is made).
+pub const MAX_PIECES: usize = 20_000_000;
 
 /// Where the darkness of the texture comes from.
 #[derive(Debug, Clone)]
@@ -297,6 +300,8 @@ struct Seg {
 /// The textured lines of a file and the surface they make.
 struct Survey {
     segs: HashMap<u64, Seg>,
+    /// Length of the walls to texture (mm).
+    length: f64,
     center: [f64; 2],
     radius: f64,
     z_mid: f64,
@@ -482,6 +487,7 @@ fn survey(text: &[u8], config: &SlicerConfig, roles: &[Role]) -> Result<Survey, 
         }
     }
     Ok(Survey {
+        length: paths.iter().map(|p| p.length()).sum(),
         segs,
         center,
         radius: (rs / n.max(1.0)).max(1e-3),
@@ -610,7 +616,8 @@ impl MoveMap for TextureMap<'_> {
                 let mut v = high - darkness * (high - low);
                 let (e, v) = match self.spec.mode {
                     Mode::Constant => {
-                        v = v.max(floor.min(high.max(floor)));
+                        // The width cap raises the speed, never past the range.
+                        v = v.max(floor).min(high);
                         let e = match self.final_e {
                             Some(es) => {
                                 es.get(self.pieces.len()).copied().unwrap_or(rate * len / v)
@@ -761,6 +768,15 @@ pub fn texture_text(
         _ => tile[0].min(tile[1]) / 16.0,
     };
     let piece_len = texel.max(high / MAX_MOVES_PER_S).max(0.05);
+    // Memory follows the pieces (the output is made in memory): refuse a texture finer than
+    // the file can hold, before making it.
+    let pieces = (survey.length / piece_len).ceil();
+    if pieces > MAX_PIECES as f64 {
+        return Err(Error::Invalid(format!(
+            "the texture would cut {:.0} mm of walls into {pieces:.0} pieces of {piece_len:.2} mm, more than {MAX_PIECES}; give a larger --size or fewer --roles",
+            survey.length
+        )));
+    }
     let max_flow = spec
         .max_flow
         .or_else(|| {
