@@ -23,7 +23,7 @@ use sweep::PathPoint;
 /// a flip of the joints, not from the segment's length, and more pieces would not help.
 const MAX_DEPTH: usize = 16;
 /// Most joint moves a conversion writes (the file is made in memory).
-pub const MAX_MOVES: usize = 50_000_000;
+pub const MAX_MOVES: usize = 10_000_000;
 
 /// How F is written.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -375,6 +375,9 @@ impl Deform {
     }
 }
 
+/// Most moves a deformation writes (the file is made in memory, about 50 bytes a move).
+pub const MAX_PIECES: u64 = 5_000_000;
+
 fn before_relative(m: &Machine) -> bool {
     m.xyz_relative()
 }
@@ -385,6 +388,11 @@ fn dist3(a: [f64; 3], b: [f64; 3]) -> f64 {
 
 impl MoveMap for Deform {
     fn map(&mut self, m: &Move, _before: &Machine, out: &mut Vec<Piece>) {
+        if self.pieces > MAX_PIECES {
+            // Refused after the pass (see `problem`): the rest is not worth mapping.
+            out.push(Piece::unchanged(m));
+            return;
+        }
         if m.line < self.helix.first_line {
             out.push(Piece::unchanged(m));
             return;
@@ -522,6 +530,12 @@ impl MoveMap for Deform {
             });
         }
         self.pieces += out.len() as u64;
+        if self.pieces > MAX_PIECES {
+            let chord = self.chord;
+            self.note(|| {
+                format!("the deformation needs more than {MAX_PIECES} moves at --chord {chord} mm; give a larger --chord")
+            });
+        }
         if m.line == self.helix.last_line {
             self.top_out = out.last().map(|p| p.to[2]);
         }

@@ -36,7 +36,7 @@ pub const MAX_MOVES_PER_S: f64 = 200.0;
 /// Largest picture taken (pixels a side).
 pub const MAX_IMAGE_SIDE: u32 = 8192;
 /// Most pieces a texture writes (each holds about 100 bytes while the file is made).
-pub const MAX_PIECES: usize = 20_000_000;
+pub const MAX_PIECES: usize = 5_000_000;
 
 /// Where the darkness of the texture comes from.
 #[derive(Debug, Clone)]
