@@ -25,6 +25,8 @@ use crate::layers::{flow_width, Layer, Role, SlicerConfig};
 use crate::machine::{Action, Machine};
 use crate::pass::Pass;
 use crate::poa::{polyline_length, Plan, PoaSettings, Strand, StrandKind};
+use crate::progress::footer_line;
+pub use crate::progress::update_footer;
 use crate::writer::{fmt_num, MmPerMin, MmPerS, TravelStyle, Writer};
 
 /// How the file moves between strands (its [`TravelStyle`]) and how fast poa prints.
@@ -1251,77 +1253,6 @@ pub fn update_binary_metadata(file: &mut crate::bgcode::Bgcode, report: &Process
             block.forget_stored();
         }
     }
-}
-
-/// Rewrites the slicer's statistics comments (PrusaSlicer family: `; filament used [mm] = `,
-/// `[cm3]`, `[g]`, cost, `; estimated printing time (...) = 1h 2m 3s`) for what the rewrite
-/// added. Lines it does not recognise, or with per-extruder lists, are left as they are.
-pub fn update_footer(
-    block: &[u8],
-    filament_mm: f64,
-    time_s: f64,
-    filament_area: f64,
-    density: f64,
-) -> Vec<u8> {
-    let cm3 = filament_mm * filament_area / 1000.0;
-    let grams = cm3 * density;
-    let mut out = Vec::with_capacity(block.len() + 64);
-    let mut old_g = None;
-    for raw in split_lines(block) {
-        let content = strip_terminator(raw);
-        let ending = &raw[content.len()..];
-        let text = String::from_utf8_lossy(content);
-        let replaced = footer_line(&text, filament_mm, cm3, grams, time_s, &mut old_g);
-        match replaced {
-            Some(new) => {
-                out.extend_from_slice(new.as_bytes());
-                out.extend_from_slice(ending);
-            }
-            None => out.extend_from_slice(raw),
-        }
-    }
-    out
-}
-
-fn footer_line(
-    text: &str,
-    mm: f64,
-    cm3: f64,
-    grams: f64,
-    secs: f64,
-    old_g: &mut Option<f64>,
-) -> Option<String> {
-    let (key, value) = text.split_once(" = ")?;
-    // A damaged statistic is left as it is, not added to.
-    let number = || {
-        value
-            .trim()
-            .parse::<f64>()
-            .ok()
-            .filter(|x| x.is_finite() && (0.0..1e12).contains(x))
-    };
-    let new = match key {
-        "; filament used [mm]" => format!("{:.2}", number()? + mm),
-        "; filament used [cm3]" => format!("{:.2}", number()? + cm3),
-        "; filament used [g]" | "; total filament used [g]" => {
-            let g = number()?;
-            old_g.get_or_insert(g);
-            format!("{:.2}", g + grams)
-        }
-        "; filament cost" | "; total filament cost" => {
-            // Cost scales with mass.
-            let (c, g) = (number()?, (*old_g)?);
-            if g <= 0.0 {
-                return None;
-            }
-            format!("{:.2}", c * (g + grams) / g)
-        }
-        k if k.starts_with("; estimated printing time") => {
-            crate::estimate::format_dhms(crate::estimate::parse_dhms(value.trim())? + secs)
-        }
-        _ => return None,
-    };
-    Some(format!("{key} = {new}"))
 }
 
 #[cfg(test)]

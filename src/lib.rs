@@ -9,7 +9,9 @@
 //! [`movemap`]s -> one G-code [`writer`] (typed speeds, the kinematics seam) -> finish
 //! ([`progress`] M73, footer, [`output`]'s atomic writes); [`rewrite`] runs it for a file.
 //! [`helix`] is the layer-less path: a vase-mode helix found, deformed by a move map
-//! (expressions through [`expr`]), checked in 3D and finished like a rewrite.
+//! (expressions through [`expr`]), checked in 3D and finished like a rewrite. [`texture`] is
+//! a move map too (speed modulation at constant extrusion, timed by [`estimate`]);
+//! [`fiveaxis`] slices swept parts and writes joint G-code for table-tilting printers.
 //! [`estimate`], [`check`], [`report`] and [`preview`] read the same stages for what a user
 //! reads and sees; [`settings`] is the one table of poa's own settings. The binary `poa`
 //! only parses arguments, calls [`rewrite`] and the reports, prints and maps errors to exit

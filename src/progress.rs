@@ -1,4 +1,5 @@
-//! Progress lines (`M73`) after a rewrite.
+//! Progress lines (`M73`) and the statistics footer after a rewrite or a whole-file
+//! transform (the finish stage).
 //!
 //! Input: a rewritten G-code text, where in it (byte offsets) the rewrite added time and how
 //! much, and the slicer's total estimates. Output: the same text with the numbers of every
@@ -6,12 +7,16 @@
 //! printer's display counts down the new total. Every other byte, the M73 lines' own comments
 //! and other words included, is copied unchanged; the file keeps its line count.
 //!
+//! The footer's statistics (`; filament used [mm] = ...`, `; estimated printing time ...`)
+//! get the filament and time added ([`update_footer`]); [`refresh`] does both for a whole
+//! transformed text by comparing poa's estimates of input and output.
+//!
 //! Why a pass of its own: a time added late in the file changes the remaining time shown at
 //! every earlier progress line, which was already written when the addition was found.
 
 use std::io::{self, Read, Write};
 
-use crate::gcode::{parse_line, strip_terminator, Command};
+use crate::gcode::{parse_line, split_lines, strip_terminator, Command};
 
 /// Time a rewrite added, counted from a byte offset of the output on.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -287,7 +292,7 @@ pub fn refresh(
         .map_or(0, |i| footer + i + 1)
         .min(fixed.len());
     let footer = if fixed.len() <= 64 * 1024 { 0 } else { footer };
-    let tail = crate::emit::update_footer(
+    let tail = update_footer(
         &fixed[footer..],
         filament_out - filament_in,
         time_out - time_in,
@@ -303,6 +308,77 @@ pub fn refresh(
         filament_in,
         filament_out,
     })
+}
+
+/// Rewrites the slicer's statistics comments (PrusaSlicer family: `; filament used [mm] = `,
+/// `[cm3]`, `[g]`, cost, `; estimated printing time (...) = 1h 2m 3s`) for what the rewrite
+/// added. Lines it does not recognise, or with per-extruder lists, are left as they are.
+pub fn update_footer(
+    block: &[u8],
+    filament_mm: f64,
+    time_s: f64,
+    filament_area: f64,
+    density: f64,
+) -> Vec<u8> {
+    let cm3 = filament_mm * filament_area / 1000.0;
+    let grams = cm3 * density;
+    let mut out = Vec::with_capacity(block.len() + 64);
+    let mut old_g = None;
+    for raw in split_lines(block) {
+        let content = strip_terminator(raw);
+        let ending = &raw[content.len()..];
+        let text = String::from_utf8_lossy(content);
+        let replaced = footer_line(&text, filament_mm, cm3, grams, time_s, &mut old_g);
+        match replaced {
+            Some(new) => {
+                out.extend_from_slice(new.as_bytes());
+                out.extend_from_slice(ending);
+            }
+            None => out.extend_from_slice(raw),
+        }
+    }
+    out
+}
+
+pub(crate) fn footer_line(
+    text: &str,
+    mm: f64,
+    cm3: f64,
+    grams: f64,
+    secs: f64,
+    old_g: &mut Option<f64>,
+) -> Option<String> {
+    let (key, value) = text.split_once(" = ")?;
+    // A damaged statistic is left as it is, not added to.
+    let number = || {
+        value
+            .trim()
+            .parse::<f64>()
+            .ok()
+            .filter(|x| x.is_finite() && (0.0..1e12).contains(x))
+    };
+    let new = match key {
+        "; filament used [mm]" => format!("{:.2}", number()? + mm),
+        "; filament used [cm3]" => format!("{:.2}", number()? + cm3),
+        "; filament used [g]" | "; total filament used [g]" => {
+            let g = number()?;
+            old_g.get_or_insert(g);
+            format!("{:.2}", g + grams)
+        }
+        "; filament cost" | "; total filament cost" => {
+            // Cost scales with mass.
+            let (c, g) = (number()?, (*old_g)?);
+            if g <= 0.0 {
+                return None;
+            }
+            format!("{:.2}", c * (g + grams) / g)
+        }
+        k if k.starts_with("; estimated printing time") => {
+            crate::estimate::format_dhms(crate::estimate::parse_dhms(value.trim())? + secs)
+        }
+        _ => return None,
+    };
+    Some(format!("{key} = {new}"))
 }
 
 #[cfg(test)]

@@ -306,7 +306,7 @@ pub fn ab_plate(
     progress::update(&plate.text[..], &mut text, &plate.added, totals).map_err(read_err)?;
     let footer = footer_start(&text);
     let fa = crate::layers::filament_area(opened.config.filament_diameter());
-    let tail = emit::update_footer(
+    let tail = progress::update_footer(
         &text[footer..],
         plate.added_filament_mm,
         plate.added_time_s,
