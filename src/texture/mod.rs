@@ -851,6 +851,48 @@ impl Textured {
     }
 }
 
+/// The output's layer nearest the middle of the textured height, drawn like `poa preview`
+/// (strands at the width their E makes, over the area of the layer below).
+fn layer_view(t: &Textured, title: &str) -> Option<String> {
+    let mut zs: Vec<f64> = t.pieces.iter().map(|p| p.to[2]).collect();
+    if zs.is_empty() {
+        return None;
+    }
+    let mid = zs.len() / 2;
+    let z = *zs.select_nth_unstable_by(mid, f64::total_cmp).1;
+    let config = SlicerConfig::parse(&t.text);
+    let reader = LayerReader::new(
+        &t.text[..],
+        ReaderOptions {
+            keep_raw: false,
+            config,
+        },
+    );
+    let mut below: Option<crate::layers::Layer> = None;
+    for layer in reader {
+        let layer = layer.ok()?;
+        if layer.kind != LayerKind::Layer {
+            continue;
+        }
+        if (layer.z - z).abs() < 1e-6 {
+            let area = below
+                .as_ref()
+                .map(|b| crate::geometry::printed_area(b, &crate::geometry::AreaOptions::default()))
+                .unwrap_or_else(|| geo::MultiPolygon::new(Vec::new()));
+            return Some(crate::preview::render(&crate::preview::Scene {
+                title,
+                layer: &layer,
+                below: &area,
+                regions: &[],
+                samples: &[],
+                poa_blocks: &[],
+            }));
+        }
+        below = Some(layer);
+    }
+    None
+}
+
 /// An HTML page: the texture as asked (darkness over the surface, unwrapped: u right, v up)
 /// beside the bead width the output lays there (darker = wider), acceleration's blur
 /// included since widths come from the estimator's timing.
@@ -911,8 +953,9 @@ pub fn preview_page(t: &Textured, spec: &Spec, filament_area: f64, title: &str) 
             r##"<svg xmlns="http://www.w3.org/2000/svg" width="{w:.0}" height="{h:.0}" viewBox="0 0 {w:.1} {h:.1}"><rect width="100%" height="100%" fill="#fff"/>{body}</svg>"##
         )
     };
+    let layer = layer_view(t, title).unwrap_or_default();
     format!(
-        "<!doctype html>\n<html><head><meta charset=\"utf-8\"><title>{t}</title><style>body{{font-family:sans-serif;margin:1em}} figure{{display:inline-block;margin:0 1em 1em 0;vertical-align:top}}</style></head><body>\n<h1>{t}</h1>\n<p>{n} pieces; speeds asked {lo_v}-{hi_v} mm/s, reached {vmin:.1}-{vmax:.1} mm/s at {a:.0} mm/s2 (the smallest texel that shows the full contrast: {texel:.2} mm); bead {wmin:.3}-{wmax:.3} mm wide.</p>\n<figure>{asked}<figcaption>the texture asked (dark = slow), unwrapped: u right, v up</figcaption></figure>\n<figure>{made}<figcaption>bead width the output lays (dark = wide)</figcaption></figure>\n</body></html>\n",
+        "<!doctype html>\n<html><head><meta charset=\"utf-8\"><title>{t}</title><style>body{{font-family:sans-serif;margin:1em}} figure{{display:inline-block;margin:0 1em 1em 0;vertical-align:top}} figure.layer svg{{width:600px;height:auto}}</style></head><body>\n<h1>{t}</h1>\n<p>{n} pieces; speeds asked {lo_v}-{hi_v} mm/s, reached {vmin:.1}-{vmax:.1} mm/s at {a:.0} mm/s2 (the smallest texel that shows the full contrast: {texel:.2} mm); bead {wmin:.3}-{wmax:.3} mm wide.</p>\n<figure>{asked}<figcaption>the texture asked (dark = slow), unwrapped: u right, v up</figcaption></figure>\n<figure>{made}<figcaption>bead width the output lays (dark = wide)</figcaption></figure>\n<figure class=\"layer\">{layer}<figcaption>a layer of the output half way up the texture, each strand at the width its E makes</figcaption></figure>\n</body></html>\n",
         t = crate::preview::escape(title),
         n = t.pieces.len(),
         lo_v = spec.speeds[0],

@@ -267,7 +267,8 @@ fn a_picture_is_printed_and_the_report_is_the_hand_calculation() {
         "{said} (want {want:.2} at {a})"
     );
     let page = std::fs::read_to_string(prev.join("index.html")).unwrap();
-    assert!(page.matches("<svg").count() == 2 && page.contains("bead width"));
+    assert!(page.matches("<svg").count() == 3 && page.contains("bead width"));
+    assert!(page.contains("layer 38 at Z") || page.contains("a layer of the output"));
     // poa check: nothing in air that the slice did not have.
     let c = poa().arg("check").arg("--json").arg(&out).output().unwrap();
     let v: serde_json::Value = serde_json::from_slice(&c.stdout).unwrap();
