@@ -1,5 +1,5 @@
 //! Whole-stream move maps: every move's position, filament and feedrate mapped, for
-//! transforms of a whole file (the helical deformation of vase-mode prints).
+//! transforms of a whole file (the helical deformation of vase-mode prints, textures).
 //!
 //! Input: G-code text as read and a [`MoveMap`]. Output: G-code where each move is replaced
 //! by the pieces the map gives for it, written by the one [`Writer`] (with its kinematics).
@@ -9,7 +9,9 @@
 //!   is where the file believes (position, E counter): so the identity map gives the input
 //!   back byte for byte, and a map that changes only some moves rewrites only those and the
 //!   moves until the output is back in step (a `G92 E`, a homing, or a move that ends where
-//!   the file's does with the counter the file has).
+//!   the file's does with the counter the file has). When only an absolute E counter is out
+//!   of step before a move the map leaves alone, one `G92 E` (the file's value) is written
+//!   before it and copying resumes: every other line stays the file's.
 //! - Every line that is not a move (comments, temperatures, fan, G92, tool changes) is copied.
 //! - A map sees each move once, in file order, with the interpreter state before it.
 //! - Moves in relative XYZ mode (G91) that a map changes are refused: the writer writes
@@ -68,6 +70,8 @@ pub struct MapStats {
     pub rewritten: u64,
     /// Output moves written for them.
     pub pieces: u64,
+    /// `G92 E` lines written to bring an absolute E counter back in step.
+    pub e_resets: u64,
 }
 
 fn close(a: [f64; 3], b: [f64; 3]) -> bool {
@@ -129,8 +133,21 @@ pub fn apply<R: BufRead, W: Write>(
         map.map(&m, &before, &mut pieces);
         let in_step =
             close(pen.pos, m.from) && (pen.relative_e || (pen.e - before.e_logical()).abs() < 1e-9);
-        if in_step && pieces.len() == 1 && pieces[0] == Piece::unchanged(&m) {
+        let unchanged = pieces.len() == 1 && pieces[0] == Piece::unchanged(&m);
+        if in_step && unchanged {
             output.write_all(&raw).map_err(io_err)?;
+            pen = Pen::of(&machine);
+            continue;
+        }
+        if unchanged && !pen.relative_e && close(pen.pos, m.from) && !before.xyz_relative() {
+            // Only the absolute E counter is out of step (the map changed how much earlier
+            // moves push): one `G92 E` puts it back, and the file's own lines are copied
+            // again instead of every later move being rewritten for its E.
+            let nl = if raw.ends_with(b"\r\n") { "\r\n" } else { "\n" };
+            let reset = format!("G92 E{}{nl}", crate::writer::fmt_e(before.e_logical()));
+            output.write_all(reset.as_bytes()).map_err(io_err)?;
+            output.write_all(&raw).map_err(io_err)?;
+            stats.e_resets += 1;
             pen = Pen::of(&machine);
             continue;
         }
