@@ -272,10 +272,7 @@ pub fn check(text: &[u8], helix: &Helix, bead: Bead, keep_samples: usize) -> Rep
             return;
         }
         let pts = m.points(0.01);
-        let total: f64 = pts
-            .windows(2)
-            .map(|w| (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]))
-            .sum();
+        let total = crate::geometry::polyline_length(&pts);
         let len3 = (total.powi(2) + (m.to[2] - m.from[2]).powi(2)).sqrt();
         let n = ((len3 / step).ceil() as usize).clamp(1, 1_000_000);
         let at = |f: f64| -> [f64; 3] {

@@ -573,10 +573,7 @@ impl MoveMap for TextureMap<'_> {
             return;
         }
         let pts = m.points(0.01);
-        let total: f64 = pts
-            .windows(2)
-            .map(|w| (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]))
-            .sum();
+        let total = crate::geometry::polyline_length(&pts);
         if total <= 1e-6 {
             out.push(Piece::unchanged(m));
             return;
