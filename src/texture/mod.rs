@@ -591,6 +591,10 @@ impl MoveMap for TextureMap<'_> {
         let mut along = 0.0;
         for w in pts.windows(2) {
             let l = (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]);
+            if l < 1e-6 {
+                // A repeated point of the slicer's path: no piece of its own.
+                continue;
+            }
             let n = ((l / self.piece_len).ceil() as usize).clamp(1, 100_000);
             for i in 0..n {
                 let (f0, f1) = (i as f64 / n as f64, (i + 1) as f64 / n as f64);
@@ -648,8 +652,9 @@ impl MoveMap for TextureMap<'_> {
             }
         }
         // The last piece ends exactly where the move did.
-        if let Some(last) = out.last_mut() {
-            last.to = m.to;
+        match out.last_mut() {
+            Some(last) => last.to = m.to,
+            None => out.push(Piece::unchanged(m)),
         }
     }
 }
@@ -715,14 +720,17 @@ fn piece_times(text: &[u8], config: &SlicerConfig, pieces: &[PieceRec]) -> Optio
             continue;
         };
         let p = &pieces[times.len()];
-        let close = (0..3).all(|k| (m.to[k] - p.to[k]).abs() < 0.002);
-        if !(m.is_extrusion() && close) {
+        // By where it ends: a piece so short that its E rounds to 0 is still a piece.
+        if !(0..3).all(|k| (m.to[k] - p.to[k]).abs() < 0.002) {
             continue;
         }
+        // A move the estimator gave no time (no block) took none.
         let j = marks.partition_point(|(l, _)| *l < line);
-        let end = marks.get(j).filter(|(l, _)| *l == line)?.1;
-        let start = if j > 0 { marks[j - 1].1 } else { 0.0 };
-        times.push(end - start);
+        let time = match marks.get(j) {
+            Some((l, end)) if *l == line => end - if j > 0 { marks[j - 1].1 } else { 0.0 },
+            _ => 0.0,
+        };
+        times.push(time);
     }
     (times.len() == pieces.len()).then_some(times)
 }
@@ -982,6 +990,43 @@ mod tests {
         }
         // Seamless: the lattice repeats every period.
         assert!((noise(0.3, 0.6, 4) - noise(4.3, 4.6, 4)).abs() < 1e-12);
+    }
+
+    #[test]
+    fn repeated_points_and_moves_too_short_for_their_e_are_still_textured() {
+        // Cura writes repeated points and hair-thin moves into walls: a piece of length 0
+        // or with E rounding to 0 must not stop the pieces from being timed.
+        let mut text = String::from(";FLAVOR:Marlin\nM83\nG28\n");
+        for layer in 0..3 {
+            let z = 0.2 * (layer + 1) as f64;
+            text.push_str(&format!(
+                ";LAYER:{layer}\nG0 Z{z:.1} F600\nG0 X10 Y10 F6000\n;TYPE:WALL-OUTER\n"
+            ));
+            text.push_str("G1 F1500 X30 Y10 E0.7\nG1 X30 Y10 E0.0001\nG1 X30 Y30 E0.7\n");
+            text.push_str("G1 X30.0004 Y30 E0.00001\nG1 X10 Y30 E0.7\nG1 X10 Y10 E0.7\n");
+        }
+        let config = SlicerConfig::parse(text.as_bytes());
+        let spec = Spec {
+            source: Source::Checker,
+            mapping: Mapping::Wrap,
+            size: Some([4.0, 0.4]),
+            offset: [0.0, 0.0],
+            speeds: [15.0, 40.0],
+            roles: vec![Role::ExternalPerimeter],
+            invert: false,
+            mode: Mode::Constant,
+            max_flow: None,
+            center: None,
+        };
+        let t = texture_text(
+            text.as_bytes(),
+            &config,
+            &spec,
+            crate::progress::Totals::default(),
+        )
+        .unwrap();
+        assert!(t.pieces.len() > 3 * 4 * 16, "{} pieces", t.pieces.len());
+        assert_eq!(t.times.len(), t.pieces.len());
     }
 
     #[test]
