@@ -15,7 +15,7 @@
 use geo::Area;
 use serde::Serialize;
 
-use crate::geometry::footprint;
+use crate::geometry::{footprint, nearest_on_segment};
 use crate::layers::{flow_width, Layer, LayerKind, Path};
 
 /// Settings of the check.
@@ -49,15 +49,8 @@ struct Seg {
 
 impl Seg {
     fn distance(&self, p: [f64; 2]) -> f64 {
-        let (dx, dy) = (self.b[0] - self.a[0], self.b[1] - self.a[1]);
-        let len2 = dx * dx + dy * dy;
-        let t = if len2 > 0.0 {
-            (((p[0] - self.a[0]) * dx + (p[1] - self.a[1]) * dy) / len2).clamp(0.0, 1.0)
-        } else {
-            0.0
-        };
-        let (x, y) = (self.a[0] + t * dx - p[0], self.a[1] + t * dy - p[1]);
-        (x * x + y * y).sqrt()
+        let (_, c) = nearest_on_segment(p, self.a, self.b);
+        (c[0] - p[0]).hypot(c[1] - p[1])
     }
 }
 
@@ -183,6 +176,198 @@ impl Grid {
             }
         }
         self.outside.iter().copied().find(|&i| hit(i))
+    }
+}
+
+/// The check's support model near one part of a layer, for the rewrite: which ends of a
+/// slicer strand the check would find hanging in air (an unsupported run at a path's start or
+/// end is never anchored on both sides). Holds the layer below and the strands of this layer
+/// added so far, inside a box (segments outside it are left out: queries stay inside it).
+pub struct EndSupport {
+    grid: Grid,
+    boxes: Vec<([f64; 2], [f64; 2])>,
+    filament_area: f64,
+    opts: CheckOptions,
+}
+
+impl EndSupport {
+    /// The model of the layer `below` inside the boxes (lower, upper corner).
+    pub fn new(below: &Layer, boxes: &[([f64; 2], [f64; 2])], filament_area: f64) -> EndSupport {
+        let (lo, hi) = boxes.iter().fold(
+            ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]),
+            |(lo, hi), (l, h)| {
+                (
+                    [lo[0].min(l[0]), lo[1].min(l[1])],
+                    [hi[0].max(h[0]), hi[1].max(h[1])],
+                )
+            },
+        );
+        let (lo, hi) = if lo[0] <= hi[0] {
+            (lo, hi)
+        } else {
+            ([0.0; 2], [0.0; 2])
+        };
+        let mut sup = EndSupport {
+            grid: Grid::new(1.0, lo, hi),
+            boxes: boxes.to_vec(),
+            filament_area,
+            opts: CheckOptions::default(),
+        };
+        for s in segments(below, filament_area) {
+            sup.insert(s);
+        }
+        sup
+    }
+
+    fn insert(&mut self, s: Seg) {
+        // Beads are at most 10 mm wide: a segment farther than that from the box supports
+        // nothing in it.
+        let m = s.half + 0.5;
+        let meets = self.boxes.iter().any(|(lo, hi)| {
+            s.a[0].max(s.b[0]) + m >= lo[0]
+                && s.a[0].min(s.b[0]) - m <= hi[0]
+                && s.a[1].max(s.b[1]) + m >= lo[1]
+                && s.a[1].min(s.b[1]) - m <= hi[1]
+        });
+        if meets {
+            self.grid.insert(s);
+        }
+    }
+
+    /// Adds a strand of this layer (printed before the strands judged next).
+    pub fn add(&mut self, path: &Path) {
+        for i in 0..path.points.len().saturating_sub(1) {
+            let s = Seg {
+                a: path.points[i],
+                b: path.points[i + 1],
+                half: seg_width(path, i, self.filament_area) / 2.0,
+            };
+            self.insert(s);
+        }
+    }
+
+    /// The nearest point to `end` (at most `max` mm away) where a strand of width `w` would
+    /// be supported, with a sample's half step to spare: where a strand hanging off at `end`
+    /// can be extended to, so that its run over air is held at both ends.
+    pub fn anchor(&self, end: [f64; 2], w: f64, max: f64) -> Option<[f64; 2]> {
+        let g = &self.grid;
+        if !(end[0].is_finite() && end[1].is_finite()) || g.segs.is_empty() {
+            return None;
+        }
+        let reach = (0.5 - self.opts.overlap_min) * w;
+        let r = max + g.max_half + reach;
+        let (x0, y0) = g.key(end[0] - r, end[1] - r);
+        let (x1, y1) = g.key(end[0] + r, end[1] + r);
+        let mut best: Option<(f64, [f64; 2])> = None;
+        let candidates = (y0.max(0)..=y1.min(g.ny - 1))
+            .flat_map(|y| (x0.max(0)..=x1.min(g.nx - 1)).map(move |x| (y * g.nx + x) as usize))
+            .flat_map(|c| g.cells[c].iter().copied())
+            .chain(g.outside.iter().copied());
+        for i in candidates {
+            let s = &g.segs[i as usize];
+            let (_, c) = nearest_on_segment(end, s.a, s.b);
+            let d = ((end[0] - c[0]).powi(2) + (end[1] - c[1]).powi(2)).sqrt();
+            // Deep enough that the samples of the last step are held too.
+            let need = (s.half + reach - self.opts.step).max(0.0);
+            let go = (d - need).max(0.0);
+            if go <= max && best.is_none_or(|b| go < b.0) && d > 1e-9 {
+                let f = go / d;
+                best = Some((
+                    go,
+                    [end[0] + (c[0] - end[0]) * f, end[1] + (c[1] - end[1]) * f],
+                ));
+            }
+        }
+        best.map(|b| b.1)
+    }
+
+    /// The unsupported runs at the start and at the end of `path` (cumulative length from
+    /// its start to its first supported sample, and from its last supported sample to its
+    /// end), sampled as [`check_layer`] samples it, a path's own segments supporting it from two
+    /// widths behind as in the check. `None` when a run is longer than `max_run` mm (no
+    /// supported sample within it).
+    pub fn dangling(&self, path: &Path, max_run: f64) -> Option<(f64, f64)> {
+        let opts = &self.opts;
+        // (start along the path, segment, width) of every segment with a length.
+        let mut segs: Vec<(f64, Seg, f64)> = Vec::with_capacity(path.points.len());
+        let mut along = 0.0;
+        for i in 0..path.points.len().saturating_sub(1) {
+            let (a, b) = (path.points[i], path.points[i + 1]);
+            let len = ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2)).sqrt();
+            if len > 1e-9 {
+                let w = seg_width(path, i, self.filament_area);
+                segs.push((
+                    along,
+                    Seg {
+                        a,
+                        b,
+                        half: w / 2.0,
+                    },
+                    w,
+                ));
+                along += len;
+            }
+        }
+        let total = along;
+        let mut hint = None;
+        // Whether the sample `k` of `n` of segment `i` is held; its distance along the path.
+        let mut sample = |i: usize, k: usize, n: usize| -> (f64, bool) {
+            let (start, s, w) = segs[i];
+            let t = (k as f64 + 0.5) / n as f64;
+            let p = [
+                s.a[0] + t * (s.b[0] - s.a[0]),
+                s.a[1] + t * (s.b[1] - s.a[1]),
+            ];
+            let len = ((s.b[0] - s.a[0]).powi(2) + (s.b[1] - s.a[1]).powi(2)).sqrt();
+            let at = start + t * len;
+            let reach = (0.5 - opts.overlap_min) * w;
+            let held = self.grid.near(p, reach, &mut hint)
+                || segs[..i].iter().any(|(o_start, o, _)| {
+                    let o_end =
+                        o_start + ((o.b[0] - o.a[0]).powi(2) + (o.b[1] - o.a[1]).powi(2)).sqrt();
+                    at - o_end >= 2.0 * w && o.distance(p) - o.half <= reach
+                });
+            (at, held)
+        };
+        let count = |i: usize| {
+            let (_, s, _) = segs[i];
+            let len = ((s.b[0] - s.a[0]).powi(2) + (s.b[1] - s.a[1]).powi(2)).sqrt();
+            ((len / opts.step).ceil() as usize).clamp(1, 1_000_000)
+        };
+        // The first held sample from the start, within `max_run`.
+        let mut head = None;
+        'head: for (i, &(start, _, _)) in segs.iter().enumerate() {
+            if start > max_run {
+                break;
+            }
+            let n = count(i);
+            for k in 0..n {
+                let (at, held) = sample(i, k, n);
+                if at > max_run {
+                    break 'head;
+                }
+                if held {
+                    head = Some(if i == 0 && k == 0 { 0.0 } else { at });
+                    break 'head;
+                }
+            }
+        }
+        let mut tail = None;
+        'tail: for i in (0..segs.len()).rev() {
+            let n = count(i);
+            for k in (0..n).rev() {
+                let (at, held) = sample(i, k, n);
+                if total - at > max_run {
+                    break 'tail;
+                }
+                if held {
+                    let last = i + 1 == segs.len() && k + 1 == n;
+                    tail = Some(if last { 0.0 } else { total - at });
+                    break 'tail;
+                }
+            }
+        }
+        Some((head?, tail?))
     }
 }
 
@@ -477,6 +662,69 @@ mod tests {
             r += spacing;
         }
         layer(2, paths)
+    }
+
+    /// The layer below: two lines along X at Y 0 and Y 3 from X 0 to 10, and a wall along Y
+    /// at X 12.
+    fn ladder() -> Layer {
+        layer(
+            1,
+            vec![
+                strand(vec![[0.0, 0.0], [10.0, 0.0]], 0.45),
+                strand(vec![[0.0, 3.0], [10.0, 3.0]], 0.45),
+                strand(vec![[12.0, -5.0], [12.0, 5.0]], 0.45),
+            ],
+        )
+    }
+
+    #[test]
+    fn a_strand_end_past_the_layer_below_dangles_and_is_anchored_on_the_wall() {
+        let fa = filament_area(1.75);
+        let below = ladder();
+        let sup = EndSupport::new(&below, &[([-5.0, -5.0], [15.0, 5.0])], fa);
+        // Along the line at Y 0, then 1.5 mm past its end, toward the wall at X 12.
+        let s = strand(vec![[2.0, 0.0], [11.5 - 0.2, 0.0]], 0.45);
+        let (head, tail) = sup.dangling(&s, 5.0).unwrap();
+        assert_eq!(head, 0.0);
+        // The line below ends at X 10 (its bead at 10 + a bit): about 1.1-1.3 mm hang.
+        assert!(tail > 1.0 && tail < 1.4, "{tail}");
+        // The run is what the check calls in air.
+        let c = check_layer(
+            Some(&below),
+            &layer(2, vec![s.clone()]),
+            fa,
+            &CheckOptions::default(),
+            false,
+        );
+        assert!(
+            (c.in_air_mm - tail).abs() < 0.11,
+            "{} vs {tail}",
+            c.in_air_mm
+        );
+        // The wall at X 12 is 0.7 mm from the end: an anchor reaches it; with the anchor the
+        // run is held at both ends.
+        let q = sup.anchor([11.3, 0.0], 0.45, 1.8).unwrap();
+        assert!(q[0] > 11.3 && q[0] < 12.0 && q[1].abs() < 1e-9, "{q:?}");
+        let mut long = s.clone();
+        long.points.push(q);
+        long.seg_e.push(s.seg_e[0] / 9.3 * (q[0] - 11.3));
+        long.seg_line.push(2);
+        let c = check_layer(
+            Some(&below),
+            &layer(2, vec![long.clone()]),
+            fa,
+            &CheckOptions::default(),
+            false,
+        );
+        assert!(c.in_air_mm < 1e-9 && c.bridged_mm > 1.0, "{c:?}");
+        assert_eq!(sup.dangling(&long, 5.0).map(|d| d.1), Some(0.0));
+        // Nothing within reach: no anchor; a run longer than asked for: not an end.
+        assert!(sup.anchor([11.3, 0.0], 0.45, 0.3).is_none());
+        assert!(sup.dangling(&s, 0.5).is_none());
+        // A strand starting over air has a head run instead.
+        let back = strand(vec![[11.3, 3.0], [2.0, 3.0]], 0.45);
+        let (head, tail) = sup.dangling(&back, 5.0).unwrap();
+        assert!(head > 1.0 && head < 1.4 && tail == 0.0, "{head} {tail}");
     }
 
     #[test]

@@ -95,6 +95,10 @@ pub struct RewriteStats {
     pub dwell_s: f64,
     /// Line before which the block was inserted (input numbering).
     pub inserted_before_line: u64,
+    /// Sparse-infill ends beside the region that hung over air: cut back (lines), or
+    /// anchored on material close by.
+    pub trimmed_ends: usize,
+    pub anchored_ends: usize,
 }
 
 /// A line ending like the layer's own.
@@ -135,6 +139,7 @@ impl Tags {
 /// Long by design: one pass over the layer's lines with the splice state (where the nozzle really is, open blocks, tags) that every branch updates; the branches themselves call helpers.
 pub fn rewrite_layer(
     layer: &Layer,
+    [below, above]: [Option<&Layer>; 2],
     rewrites: &[RegionRewrite],
     motion: &Motion,
     settings: &PoaSettings,
@@ -175,6 +180,10 @@ pub fn rewrite_layer(
         .flat_map(|p| p.seg_line.iter().copied())
         .collect();
     perimeter_lines.sort_unstable();
+    let tails = below.map_or_else(Vec::new, |b| {
+        let zones: Vec<&MultiPolygon<f64>> = rewrites.iter().map(|r| &r.plan.zone).collect();
+        dangling_tails(layer, b, above, &zones, &boxes, motion.filament_area)
+    });
     let nl = line_end(&layer.raw);
     let mut machine: Machine = start.clone();
     let mut out = Vec::with_capacity(layer.raw.len() + 64 * 1024);
@@ -205,8 +214,29 @@ pub fn rewrite_layer(
         let before = machine.snapshot();
         let action = machine.step(&parsed, number);
         let mut crossing = None;
+        let mut fix = None;
         if let Action::Move(m) = &action {
-            if m.is_extrusion() && replaceable.binary_search(&number).is_ok() {
+            fix = tails
+                .binary_search_by_key(&number, |t| t.line)
+                .ok()
+                .filter(|_| m.is_extrusion() && m.arc.is_none());
+            let cut = fix.filter(|&t| !tails[t].cut.is_empty());
+            if let Some(t) = fix.filter(|&t| tails[t].before.is_some()) {
+                resync(&mut out, nl, &before, &mut real, motion);
+                let added = tails[t]
+                    .before
+                    .map(|q| anchor_before(&mut out, nl, &before, m, q, motion));
+                let st = &mut stats[tails[t].region];
+                st.anchored_ends += 1;
+                if let Some((len, e)) = added {
+                    st.written_length_mm += len;
+                    st.written_filament_mm += e;
+                    st.travel_mm += len;
+                    st.time_added_s += len / (m.feed / 60.0).max(0.1)
+                        + len / motion.travel.travel_speed.0.max(0.1);
+                }
+            }
+            if m.is_extrusion() && (cut.is_some() || replaceable.binary_search(&number).is_ok()) {
                 let pts = m.points(0.01);
                 let (lo, hi) = pts.iter().fold(
                     ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]),
@@ -231,12 +261,57 @@ pub fn rewrite_layer(
                     .map(|(i, r)| (i, inside_intervals(&pts, &r.plan.zone)))
                     .filter(|(_, iv)| !iv.is_empty())
                     .collect();
-                if !hits.is_empty() {
-                    crossing = Some((*m, pts, hits));
+                if !hits.is_empty() || cut.is_some() {
+                    crossing = Some((*m, pts, hits, cut));
                 }
             }
         }
-        let Some((m, pts, hits)) = crossing else {
+        if let Some((m, pts, hits, cut)) = crossing {
+            let on_perimeter = perimeter_lines.binary_search(&number).is_ok();
+            for (i, _) in &hits {
+                if !done[*i] && (on_perimeter || !rewrites[*i].plan.with_perimeter) {
+                    done[*i] = true;
+                    stats[*i].inserted_before_line = number;
+                    resync(&mut out, nl, &before, &mut real, motion);
+                    emit_block(
+                        &mut out,
+                        nl,
+                        &before,
+                        layer,
+                        rewrites[*i],
+                        motion,
+                        settings,
+                        &tags,
+                        &mut stats[*i],
+                    );
+                }
+            }
+            let mut all: Vec<(f64, f64)> =
+                hits.iter().flat_map(|(_, iv)| iv.iter().copied()).collect();
+            if let Some(t) = cut {
+                all.extend(tails[t].cut.iter().copied());
+            }
+            all.sort_by(|a, b| a.0.total_cmp(&b.0));
+            let all = merge_intervals(all);
+            let (len, e) = split_move(
+                &mut out, nl, &mut real, motion, &before, &m, &pts, &all, content,
+            );
+            // A cut end alone counts for the region it lies beside.
+            let owners: Vec<usize> = if hits.is_empty() {
+                cut.map(|t| tails[t].region).into_iter().collect()
+            } else {
+                hits.iter().map(|(i, _)| *i).collect()
+            };
+            let share = 1.0 / owners.len().max(1) as f64;
+            for i in owners {
+                stats[i].removed_length_mm += len * share;
+                stats[i].removed_filament_mm += e * share;
+                stats[i].time_added_s -= len * share / (m.feed / 60.0).max(0.1);
+                if cut.is_some() {
+                    stats[i].trimmed_ends += 1;
+                }
+            }
+        } else {
             if let Action::Move(mv) = &action {
                 let moves_xy = mv.from[0] != mv.to[0] || mv.from[1] != mv.to[1];
                 if mv.is_extrusion() || before.xyz_relative() || mv.arc.is_some() {
@@ -248,38 +323,18 @@ pub fn rewrite_layer(
                 }
             }
             out.extend_from_slice(raw);
-            number += 1;
-            continue;
-        };
-        let on_perimeter = perimeter_lines.binary_search(&number).is_ok();
-        for (i, _) in &hits {
-            if !done[*i] && (on_perimeter || !rewrites[*i].plan.with_perimeter) {
-                done[*i] = true;
-                stats[*i].inserted_before_line = number;
-                resync(&mut out, nl, &before, &mut real, motion);
-                emit_block(
-                    &mut out,
-                    nl,
-                    &before,
-                    layer,
-                    rewrites[*i],
-                    motion,
-                    settings,
-                    &tags,
-                    &mut stats[*i],
-                );
-            }
         }
-        let mut all: Vec<(f64, f64)> = hits.iter().flat_map(|(_, iv)| iv.iter().copied()).collect();
-        all.sort_by(|a, b| a.0.total_cmp(&b.0));
-        let (len, e) = split_move(
-            &mut out, nl, &mut real, motion, &before, &m, &pts, &all, content,
-        );
-        let share = 1.0 / hits.len() as f64;
-        for (i, _) in &hits {
-            stats[*i].removed_length_mm += len * share;
-            stats[*i].removed_filament_mm += e * share;
-            stats[*i].time_added_s -= len * share / (m.feed / 60.0).max(0.1);
+        if let (Some(t), Action::Move(m)) = (fix, &action) {
+            // Only from where the file's move ends: a move cut short ends elsewhere.
+            if let (Some(q), None) = (tails[t].after, real) {
+                let (len, e) = anchor_after(&mut out, nl, &machine, m, q);
+                real = Some(q);
+                let st = &mut stats[tails[t].region];
+                st.anchored_ends += 1;
+                st.written_length_mm += len;
+                st.written_filament_mm += e;
+                st.time_added_s += len / (m.feed / 60.0).max(0.1);
+            }
         }
         number += 1;
     }
@@ -303,6 +358,56 @@ pub fn rewrite_layer(
         }
     }
     (out, stats)
+}
+
+/// Before a strand's first move `m` (the nozzle where `state` says): a short travel to `q`
+/// and an extrusion back to the start at the move's own E per mm, so that the strand starts
+/// on material instead of over air. E is put back in step with the file after it. Returns
+/// the anchor's length and filament.
+fn anchor_before(
+    out: &mut Vec<u8>,
+    nl: &'static str,
+    state: &Machine,
+    m: &crate::machine::Move,
+    q: [f64; 2],
+    motion: &Motion,
+) -> (f64, f64) {
+    let (at, len, per_mm) = anchor_measure(state, m, q);
+    let mut w = Writer::new(out, nl, state).at(at);
+    w.line("; poa: anchor the strand's start");
+    w.travel(&motion.travel, q, false);
+    w.feed_to(MmPerMin(m.feed));
+    w.extrude_to([at[0], at[1]], len * per_mm);
+    w.restore_feed(MmPerMin(state.feedrate()));
+    w.sync_e(state.e_logical());
+    (len, len * per_mm)
+}
+
+/// After a strand's last move `m` (`state` after it): an extrusion on to `q` at the move's own
+/// E per mm, so that the strand ends on material instead of over air. E is put back in step
+/// with the file after it; the nozzle is left at `q`.
+fn anchor_after(
+    out: &mut Vec<u8>,
+    nl: &'static str,
+    state: &Machine,
+    m: &crate::machine::Move,
+    q: [f64; 2],
+) -> (f64, f64) {
+    let (at, len, per_mm) = anchor_measure(state, m, q);
+    let mut w = Writer::new(out, nl, state).at(at);
+    w.line("; poa: anchor the strand's end");
+    w.extrude_to(q, len * per_mm);
+    w.sync_e(state.e_logical());
+    (len, len * per_mm)
+}
+
+/// Where an anchor to `q` starts (the nozzle where `state` says), its length, and the E per
+/// mm of the move `m` it continues.
+fn anchor_measure(state: &Machine, m: &crate::machine::Move, q: [f64; 2]) -> ([f64; 3], f64, f64) {
+    let at = state.position();
+    let len = (q[0] - at[0]).hypot(q[1] - at[1]);
+    let per_mm = m.e / (m.to[0] - m.from[0]).hypot(m.to[1] - m.from[1]).max(1e-9);
+    (at, len, per_mm)
 }
 
 /// Brings the nozzle from where it really is to where `state` says it is.
@@ -330,6 +435,230 @@ fn resync(
     );
     w.feed_to(MmPerMin(state.feedrate()));
     w.sync_e(state.e_logical());
+}
+
+/// What is done to one G-code line of a slicer strand whose end would hang over air.
+#[derive(Default)]
+struct Tail {
+    line: u64,
+    /// Intervals (cumulative length along the move) cut away: an end nothing can hold and
+    /// nothing printed after it leans on.
+    cut: Vec<(f64, f64)>,
+    /// Extrude from this point to the move's start first: the strand's start hung in air and
+    /// is anchored on material close by.
+    before: Option<[f64; 2]>,
+    /// Extrude from the move's end on to this point: the same for the strand's end.
+    after: Option<[f64; 2]>,
+    /// The rewrite it lies beside.
+    region: usize,
+}
+
+/// How far from a zone's box a sparse-infill end is "beside the region" (mm).
+const TAIL_NEAR: f64 = 10.0;
+/// Longest dangling end handled (mm): a longer one is not a stray end of a strand.
+const TAIL_MAX: f64 = 5.0;
+/// Shortest dangling end handled (mm): shorter ones are one sample of the check.
+const TAIL_MIN: f64 = 0.15;
+/// Longest anchor drawn from a dangling end to material that holds it, in bead widths: the
+/// slicer's infill ends stop about a width short of the walls, and the wall behind may be
+/// the inner one.
+const ANCHOR_WIDTHS: f64 = 4.0;
+
+/// The slicer's infill ends beside the zones that would hang over air: on the first floating
+/// layer the slicer cuts the column's infill where its bridge anchors begin, and the cut ends
+/// lie over the gaps of the sparse infill below, held by nothing; the bridge infill kept
+/// outside a zone ends over the same gaps (the deposition check's "in air"; 1.3-4.3 mm per
+/// layer on test parts). Judged by the check's own model ([`crate::check::EndSupport`]): an
+/// unsupported run at either end of a sparse- or bridge-infill path,
+/// up to [`TAIL_MAX`], is anchored (extended by at most [`ANCHOR_WIDTHS`] widths onto the nearest
+/// material that holds it, the run then held at both ends like a short bridge); failing
+/// that it is cut back to its first supported point, unless a strand printed after it on
+/// this layer rests on it. Paths with arcs are left as they are (their moves are not one
+/// segment each).
+fn dangling_tails(
+    layer: &Layer,
+    below: &Layer,
+    above: Option<&Layer>,
+    zones: &[&MultiPolygon<f64>],
+    boxes: &[Option<geo::Rect<f64>>],
+    filament_area: f64,
+) -> Vec<Tail> {
+    let near: Vec<([f64; 2], [f64; 2], usize)> = boxes
+        .iter()
+        .enumerate()
+        .filter_map(|(i, b)| {
+            let b = (*b)?;
+            Some((
+                [b.min().x - TAIL_NEAR, b.min().y - TAIL_NEAR],
+                [b.max().x + TAIL_NEAR, b.max().y + TAIL_NEAR],
+                i,
+            ))
+        })
+        .collect();
+    if near.is_empty() {
+        return Vec::new();
+    }
+    let inside = |q: [f64; 2], l: [f64; 2], h: [f64; 2]| {
+        q[0] >= l[0] && q[0] <= h[0] && q[1] >= l[1] && q[1] <= h[1]
+    };
+    let boxes: Vec<([f64; 2], [f64; 2])> = near.iter().map(|(l, h, _)| (*l, *h)).collect();
+    let mut sup = crate::check::EndSupport::new(below, &boxes, filament_area);
+    let mut tails: Vec<Tail> = Vec::new();
+    let entry = |tails: &mut Vec<Tail>, line: u64, region: usize| -> usize {
+        match tails.iter().position(|t| t.line == line) {
+            Some(i) => i,
+            None => {
+                tails.push(Tail {
+                    line,
+                    region,
+                    ..Default::default()
+                });
+                tails.len() - 1
+            }
+        }
+    };
+    for (k, path) in layer.paths.iter().enumerate() {
+        if !path
+            .points
+            .iter()
+            .any(|q| boxes.iter().any(|(l, h)| inside(*q, *l, *h)))
+        {
+            continue;
+        }
+        let one_segment_per_line = path.seg_line.windows(2).all(|w| w[0] != w[1]);
+        let n = path.seg_line.len();
+        let loose = matches!(
+            path.role,
+            Role::Infill | Role::BridgeInfill | Role::InternalBridge
+        );
+        let dangling = (loose && one_segment_per_line && n > 0)
+            .then(|| sup.dangling(path, TAIL_MAX))
+            .flatten();
+        if let Some((head, tail)) = dangling {
+            let total = path.length();
+            for (a, b, at_start) in [(0.0, head, true), (total - tail, total, false)] {
+                if b - a < TAIL_MIN || b - a >= total - 1e-6 {
+                    continue;
+                }
+                let mid = point_at(&path.points, (a + b) / 2.0);
+                let Some(&(_, _, region)) = near.iter().find(|(l, h, _)| inside(mid, *l, *h))
+                else {
+                    continue;
+                };
+                let (seg, end) = if at_start {
+                    (0, path.points[0])
+                } else {
+                    (n - 1, path.points[n])
+                };
+                // An end in or at a zone is taken out or rests on the loops printed first.
+                if zones.iter().any(|z| {
+                    use geo::{Distance, Euclidean};
+                    Euclidean.distance(*z, &geo::Point::new(end[0], end[1])) <= path.width
+                }) {
+                    continue;
+                }
+                if let Some(q) = sup.anchor(end, path.width, ANCHOR_WIDTHS * path.width) {
+                    let i = entry(&mut tails, path.seg_line[seg], region);
+                    if at_start {
+                        tails[i].before = Some(q);
+                    } else {
+                        tails[i].after = Some(q);
+                    }
+                    continue;
+                }
+                let run: Vec<[f64; 2]> = sub_polyline(&path.points, a, b);
+                let later = layer.paths[k + 1..]
+                    .iter()
+                    .chain(above.iter().flat_map(|a| a.paths.iter()));
+                if leaned_on(&run, path.width / 2.0, later) {
+                    continue;
+                }
+                let mut s = 0.0;
+                for (i, w) in path.points.windows(2).enumerate() {
+                    let len = polyline_length(w);
+                    let (x, y) = (a.max(s), b.min(s + len));
+                    if y - x > 1e-9 {
+                        let t = entry(&mut tails, path.seg_line[i], region);
+                        tails[t].cut.push((x - s, y - s));
+                    }
+                    s += len;
+                }
+            }
+        }
+        sup.add(path);
+    }
+    tails.sort_by_key(|t| t.line);
+    tails
+}
+
+/// The part of `pts` between cumulative lengths `a` and `b`.
+fn sub_polyline(pts: &[[f64; 2]], a: f64, b: f64) -> Vec<[f64; 2]> {
+    let mut out = vec![point_at(pts, a)];
+    let mut s = 0.0;
+    for w in pts.windows(2) {
+        s += polyline_length(w);
+        if s > a && s < b {
+            out.push(w[1]);
+        }
+    }
+    out.push(point_at(pts, b));
+    out
+}
+
+/// Whether a strand of `later` rests on the bead along `run` (half width `half`): one of its
+/// points, sampled as the check samples, lies within the check's reach of it.
+fn leaned_on<'a>(
+    run: &[[f64; 2]],
+    half: f64,
+    mut later: impl Iterator<Item = &'a crate::layers::Path>,
+) -> bool {
+    let Some(b) = crate::geometry::points_box(run) else {
+        return false;
+    };
+    let seg_dist = |p: [f64; 2], a: [f64; 2], c: [f64; 2]| {
+        let (_, n) = crate::geometry::nearest_on_segment(p, a, c);
+        (n[0] - p[0]).hypot(n[1] - p[1])
+    };
+    later.any(|p| {
+        let reach = 0.25 * p.width;
+        let m = half + reach + 0.1;
+        p.points.windows(2).any(|w| {
+            let (lo, hi) = (
+                [w[0][0].min(w[1][0]), w[0][1].min(w[1][1])],
+                [w[0][0].max(w[1][0]), w[0][1].max(w[1][1])],
+            );
+            if hi[0] < b.min().x - m
+                || lo[0] > b.max().x + m
+                || hi[1] < b.min().y - m
+                || lo[1] > b.max().y + m
+            {
+                return false;
+            }
+            let len = polyline_length(w);
+            let n = ((len / 0.1).ceil() as usize).clamp(1, 100_000);
+            (0..n).any(|k| {
+                let t = (k as f64 + 0.5) / n as f64;
+                let q = [
+                    w[0][0] + t * (w[1][0] - w[0][0]),
+                    w[0][1] + t * (w[1][1] - w[0][1]),
+                ];
+                run.windows(2)
+                    .any(|r| seg_dist(q, r[0], r[1]) - half <= reach)
+            })
+        })
+    })
+}
+
+/// Sorted intervals with overlapping ones joined.
+fn merge_intervals(sorted: Vec<(f64, f64)>) -> Vec<(f64, f64)> {
+    let mut out: Vec<(f64, f64)> = Vec::with_capacity(sorted.len());
+    for (a, b) in sorted {
+        match out.last_mut() {
+            Some(last) if a <= last.1 => last.1 = last.1.max(b),
+            _ => out.push((a, b)),
+        }
+    }
+    out
 }
 
 /// Parameter intervals (in units of cumulative length along `pts`) of the polyline inside
@@ -402,17 +731,9 @@ fn param(pts: &[[f64; 2]], q: [f64; 2]) -> f64 {
     let mut best = (f64::INFINITY, 0.0);
     let mut acc = 0.0;
     for w in pts.windows(2) {
-        let (a, b) = (w[0], w[1]);
-        let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
-        let len2 = dx * dx + dy * dy;
-        let t = if len2 > 0.0 {
-            (((q[0] - a[0]) * dx + (q[1] - a[1]) * dy) / len2).clamp(0.0, 1.0)
-        } else {
-            0.0
-        };
-        let p = [a[0] + t * dx, a[1] + t * dy];
+        let (t, p) = crate::geometry::nearest_on_segment(q, w[0], w[1]);
         let d = (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2);
-        let len = len2.sqrt();
+        let len = polyline_length(w);
         if d < best.0 {
             best = (d, acc + t * len);
         }
@@ -906,6 +1227,9 @@ pub struct PoaPass<'a> {
     /// The last rewritten layer's index and its area as rewritten, which the layer above it
     /// is planned on.
     rewritten_below: Option<(usize, MultiPolygon<f64>)>,
+    /// The strands of the layer before the one being rewritten, as read (the deposition
+    /// model that trims sparse-infill ends over air stands on them); see [`PoaPass::keep_below`].
+    below_layer: Option<Layer>,
     /// What the pass did so far.
     pub report: ProcessReport,
 }
@@ -919,6 +1243,7 @@ impl<'a> PoaPass<'a> {
             limits: crate::estimate::Estimator::new(crate::estimate::Limits::from_config(config)),
             next_id: 0,
             rewritten_below: None,
+            below_layer: None,
             report: ProcessReport::default(),
         }
     }
@@ -959,6 +1284,13 @@ impl<'a> PoaPass<'a> {
             });
         }
         chosen
+    }
+
+    /// Hands the pass the layer just passed (its raw bytes may be gone): the next layer's
+    /// rewrite judges the slicer's strand ends against it. A driver that does not call this
+    /// gets no end trimming.
+    pub fn keep_below(&mut self, layer: Layer) {
+        self.below_layer = Some(layer);
     }
 
     /// Plans the chosen regions on all cores; regions where no loop fits go to the report.
@@ -1047,6 +1379,18 @@ impl<'a> PoaPass<'a> {
 
 impl Pass for PoaPass<'_> {
     fn layer(&mut self, d: &crate::geometry::Detected) -> Result<Option<Vec<u8>>, Error> {
+        self.layer_under(d, None)
+    }
+}
+
+impl PoaPass<'_> {
+    /// [`Pass::layer`] knowing the layer printed next (`above`, as read), which may rest on
+    /// the ends of this layer's strands: those are not cut away.
+    pub fn layer_under(
+        &mut self,
+        d: &crate::geometry::Detected,
+        above: Option<&Layer>,
+    ) -> Result<Option<Vec<u8>>, Error> {
         // Above a rewritten layer the regions are found again on the layer as rewritten:
         // a perimeter moved in there moves this layer's support.
         let redone;
@@ -1094,7 +1438,17 @@ impl Pass for PoaPass<'_> {
         let rewritten = if rewrites.is_empty() {
             None
         } else {
-            let (bytes, stats) = rewrite_layer(layer, &rewrites, &self.motion, &self.opts.settings);
+            let below = self
+                .below_layer
+                .as_ref()
+                .filter(|b| b.index + 1 == layer.index && b.kind == layer.kind);
+            let (bytes, stats) = rewrite_layer(
+                layer,
+                [below, above.filter(|a| a.index == layer.index + 1)],
+                &rewrites,
+                &self.motion,
+                &self.opts.settings,
+            );
             self.account(layer, &bytes, stats);
             Some(bytes)
         };
@@ -1125,17 +1479,16 @@ pub fn process<R: BufRead + Send, W: Write>(
     let mut emitted = 0u64;
     let mut header_written = false;
     let mut held: Option<Vec<u8>> = None;
-    crate::geometry::detect(reader.by_ref(), &opts.detect, |d| {
-        if holds_header(&d.layer.raw) {
-            return Err(already_processed_error());
-        }
+    // Each layer is rewritten once the next one is read: an end of a strand the layer above
+    // rests on is not cut away.
+    let mut handle = |d: crate::geometry::Detected, above: Option<&Layer>| -> io::Result<()> {
         if let Some(n) = &d.layer.objects {
             pass.report.objects.clone_from(n);
         }
         if d.layer.kind == crate::layers::LayerKind::Layer {
             pass.report.layers += 1;
         }
-        let rewritten = pass.layer(&d).map_err(io::Error::other)?;
+        let rewritten = pass.layer_under(&d, above).map_err(io::Error::other)?;
         let report = &mut pass.report;
         let mut layer = d.layer;
         // A layer passed through is moved to the output, not copied.
@@ -1168,8 +1521,25 @@ pub fn process<R: BufRead + Send, W: Write>(
         if let Some(prev) = held.replace(block) {
             output.write_all(&prev)?;
         }
+        layer.raw = Vec::new();
+        pass.keep_below(layer);
         Ok(())
+    };
+    let mut pending: Option<crate::geometry::Detected> = None;
+    crate::geometry::detect(reader.by_ref(), &opts.detect, |d| {
+        if holds_header(&d.layer.raw) {
+            return Err(already_processed_error());
+        }
+        let ready = pending.take();
+        let next = pending.insert(d);
+        match ready {
+            Some(p) => handle(p, Some(&next.layer)),
+            None => Ok(()),
+        }
     })?;
+    if let Some(p) = pending {
+        handle(p, None)?;
+    }
     let mut report = pass.report;
     report.filament_added_cm3 = report.filament_added_mm * filament_area / 1000.0;
     report.filament_added_g = report.filament_added_cm3 * density;

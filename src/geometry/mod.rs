@@ -239,6 +239,19 @@ pub fn polyline_length(p: &[[f64; 2]]) -> f64 {
         .sum()
 }
 
+/// Where on the segment `a`-`b` the point nearest `p` lies: the parameter `t` in 0..=1 and
+/// the point.
+pub fn nearest_on_segment(p: [f64; 2], a: [f64; 2], b: [f64; 2]) -> (f64, [f64; 2]) {
+    let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+    let len2 = dx * dx + dy * dy;
+    let t = if len2 > 0.0 {
+        (((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / len2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (t, [a[0] + t * dx, a[1] + t * dy])
+}
+
 /// The parts of `lines` inside `area` (or outside it, with `inside` false).
 pub fn clip_lines(lines: &[Polyline], area: &MultiPolygon<f64>, inside: bool) -> Vec<Polyline> {
     use geo::{BooleanOps, LineString, MultiLineString};

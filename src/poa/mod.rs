@@ -515,15 +515,8 @@ fn stagger_seam(p: &mut Polyline, d: f64) {
 fn start_at_nearest_point(p: &mut Polyline, at: [f64; 2]) {
     let mut best = (f64::INFINITY, 0usize, 0.0);
     for i in 0..p.len() - 1 {
-        let (a, b) = (p[i], p[i + 1]);
-        let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
-        let l2 = dx * dx + dy * dy;
-        let t = if l2 > 0.0 {
-            (((at[0] - a[0]) * dx + (at[1] - a[1]) * dy) / l2).clamp(0.0, 1.0)
-        } else {
-            0.0
-        };
-        let d = dist2([a[0] + dx * t, a[1] + dy * t], at);
+        let (t, q) = crate::geometry::nearest_on_segment(at, p[i], p[i + 1]);
+        let d = dist2(q, at);
         if d < best.0 {
             best = (d, i, t);
         }
@@ -573,14 +566,8 @@ mod tests {
     }
 
     fn seg_dist(p: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
-        let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
-        let l2 = dx * dx + dy * dy;
-        let t = if l2 > 0.0 {
-            (((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / l2).clamp(0.0, 1.0)
-        } else {
-            0.0
-        };
-        ((p[0] - a[0] - t * dx).powi(2) + (p[1] - a[1] - t * dy).powi(2)).sqrt()
+        let (_, q) = crate::geometry::nearest_on_segment(p, a, b);
+        (q[0] - p[0]).hypot(q[1] - p[1])
     }
 
     fn dist_to(p: [f64; 2], lines: &[&Polyline]) -> f64 {
