@@ -469,7 +469,8 @@ const ANCHOR_WIDTHS: f64 = 4.0;
 /// lie over the gaps of the sparse infill below, held by nothing; the bridge infill kept
 /// outside a zone ends over the same gaps (the deposition check's "in air"; 1.3-4.3 mm per
 /// layer on test parts). Judged by the check's own model ([`crate::check::EndSupport`]): an
-/// unsupported run at either end of a sparse- or bridge-infill path,
+/// unsupported run at either end of a sparse-, solid- or bridge-infill path (a solid
+/// infill's corners hang past each layer of a 60 degree slope),
 /// up to [`TAIL_MAX`], is anchored (extended by at most [`ANCHOR_WIDTHS`] widths onto the nearest
 /// material that holds it, the run then held at both ends like a short bridge); failing
 /// that it is cut back to its first supported point, unless a strand printed after it on
@@ -529,7 +530,7 @@ fn dangling_tails(
         let n = path.seg_line.len();
         let loose = matches!(
             path.role,
-            Role::Infill | Role::BridgeInfill | Role::InternalBridge
+            Role::Infill | Role::SolidInfill | Role::BridgeInfill | Role::InternalBridge
         );
         let dangling = (loose && one_segment_per_line && n > 0)
             .then(|| sup.dangling(path, TAIL_MAX))
