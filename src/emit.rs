@@ -86,8 +86,10 @@ pub struct RewriteStats {
     /// Original extrusion taken out of the zone.
     pub removed_length_mm: f64,
     pub removed_filament_mm: f64,
-    /// Travel poa added (mm).
+    /// Travel poa added (mm), into and out of the block included.
     pub travel_mm: f64,
+    /// Of that, travel between the block's own strands (mm): what joining loops saves.
+    pub inner_travel_mm: f64,
     /// Estimated time added (s), before acceleration: new strands and travel minus what the
     /// removed extrusion took.
     pub time_added_s: f64,
@@ -955,7 +957,9 @@ fn emit_block(
         if i > 0 {
             let d = dist(w.position(), s.points[0]);
             let short = d <= t.short_travel.max(2.0 * s.width);
-            travel += w.travel(t, s.points[0], !short);
+            let hop = w.travel(t, s.points[0], !short);
+            travel += hop;
+            stats.inner_travel_mm += hop;
             time += t.travel_time(d);
         }
         if settings.dwell > 0.0

@@ -448,7 +448,49 @@ fn start_distance2(p: &Polyline, at: [f64; 2]) -> f64 {
 
 /// Orders pieces greedily, each starting at its end (or, for a closed ring, its vertex)
 /// nearest to where the previous one ended. Updates `at` to the last end.
-fn order(mut pieces: Vec<Polyline>, at: &mut [f64; 2]) -> Vec<Polyline> {
+///
+/// Greedy from `at` alone goes round a ring of pieces the nearer way and comes back across
+/// for the ones it left behind: with few pieces (a gradual overhang's ring cut where the
+/// wall below already holds it), every piece is tried first, each way round, and the order
+/// with the least travel (from `at` on) is kept.
+fn order(pieces: Vec<Polyline>, at: &mut [f64; 2]) -> Vec<Polyline> {
+    const TRY_ALL: usize = 24;
+    let n = pieces.len();
+    if n <= 1 || n > TRY_ALL || pieces.iter().any(is_closed) {
+        return greedy(pieces, at);
+    }
+    let mut best: Option<(f64, Vec<Polyline>, [f64; 2])> = None;
+    for first in 0..n {
+        for reverse in [false, true] {
+            let mut rest = pieces.clone();
+            let mut p = rest.swap_remove(first);
+            if reverse {
+                p.reverse();
+            }
+            let mut travel = dist2(*at, p[0]).sqrt();
+            let mut end = p[p.len() - 1];
+            let mut seq = vec![p];
+            for q in greedy(rest, &mut end.clone()) {
+                travel += dist2(end, q[0]).sqrt();
+                end = q[q.len() - 1];
+                seq.push(q);
+            }
+            if best.as_ref().is_none_or(|b| travel < b.0 - 1e-9) {
+                best = Some((travel, seq, end));
+            }
+        }
+    }
+    match best {
+        Some((_, seq, end)) => {
+            *at = end;
+            seq
+        }
+        None => greedy(pieces, at),
+    }
+}
+
+/// [`order`] by nearest next piece only.
+fn greedy(mut pieces: Vec<Polyline>, at: &mut [f64; 2]) -> Vec<Polyline> {
     let mut out = Vec::with_capacity(pieces.len());
     while !pieces.is_empty() {
         let mut best = (f64::INFINITY, 0usize);
@@ -712,6 +754,33 @@ mod tests {
             let share = covered as f64 / inside.max(1) as f64;
             assert!(share >= 0.98, "{name}: zone {:.1} % covered", 100.0 * share);
         }
+    }
+
+    #[test]
+    fn pieces_in_a_row_are_ordered_with_the_least_travel() {
+        // Greedy from X 1.2 takes A (back to X 0), then C, then crosses back to B: 5.2 mm.
+        // B first, then A and C going back costs 3.8 mm.
+        let a = vec![[0.0, 0.0], [1.0, 0.0]];
+        let b = vec![[2.0, 0.0], [3.0, 0.0]];
+        let c = vec![[-2.0, 0.0], [-1.0, 0.0]];
+        let travel = |seq: &[Polyline], from: [f64; 2]| {
+            let mut at = from;
+            let mut t = 0.0;
+            for p in seq {
+                t += dist2(at, p[0]).sqrt();
+                at = p[p.len() - 1];
+            }
+            t
+        };
+        let pieces = vec![a, b, c];
+        let from = [1.2, 0.0];
+        let g = greedy(pieces.clone(), &mut from.clone());
+        assert!((travel(&g, from) - 5.2).abs() < 1e-9);
+        let mut at = from;
+        let o = order(pieces, &mut at);
+        assert!((travel(&o, from) - 3.8).abs() < 1e-9, "{o:?}");
+        assert_eq!(at, o[2][1]);
+        assert_eq!(o.len(), 3);
     }
 
     #[test]

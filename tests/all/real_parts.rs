@@ -116,6 +116,18 @@ fn judge_with(name: &str, args: &[&str]) -> Vec<(String, CheckReport, CheckRepor
                 b.bridged_mm
             );
         }
+        // Loops joined: travel between a region's own strands is a small share of them. (A
+        // gradual overhang's ring is cut where the wall below already holds it: the travel
+        // over those gaps is the gaps, and is only reported.)
+        for r in rep.rewrites.iter().filter(|r| !r.gradual) {
+            assert!(
+                r.inner_travel_mm <= 0.10 * r.written_length_mm,
+                "{what}: region {}: {:.1} mm of travel between loops for {:.1} mm of them",
+                r.region,
+                r.inner_travel_mm,
+                r.written_length_mm
+            );
+        }
         assert!(
             after.time_s <= 1.10 * before.time_s,
             "{what}: {:.0} s, {:.0} s before",
