@@ -221,7 +221,8 @@ pub fn rewrite_layer(
             fix = tails
                 .binary_search_by_key(&number, |t| t.line)
                 .ok()
-                .filter(|_| m.is_extrusion() && m.arc.is_none());
+                // Anchors and cuts are written in absolute coordinates.
+                .filter(|_| m.is_extrusion() && m.arc.is_none() && !before.xyz_relative());
             let cut = fix.filter(|&t| !tails[t].cut.is_empty());
             if let Some(t) = fix.filter(|&t| tails[t].before.is_some()) {
                 resync(&mut out, nl, &before, &mut real, motion);
