@@ -16,7 +16,7 @@ use geo::Area;
 use serde::Serialize;
 
 use crate::geometry::{footprint, nearest_on_segment};
-use crate::layers::{flow_width, Layer, LayerKind, Path};
+use crate::layers::{flow_width, Layer, Path};
 
 /// Settings of the check.
 #[derive(Debug, Clone, Serialize)]
@@ -466,7 +466,7 @@ pub fn check_layer(
     };
     let (min, max) = bounds(below.into_iter().chain(std::iter::once(layer)));
     let mut grid = Grid::new(1.0, min, max);
-    let on_bed = layer.kind == LayerKind::Layer && layer.index == 0;
+    let on_bed = layer.on_bed();
     if let Some(b) = below {
         for s in segments(b, filament_area) {
             grid.insert(s);

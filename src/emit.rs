@@ -1405,7 +1405,7 @@ impl PoaPass<'_> {
         let own_area = std::cell::OnceCell::new();
         let area = || own_area.get_or_init(|| d.area_or_compute(&self.opts.detect));
         let (regions, above_rewrite) = match &self.rewritten_below {
-            Some((i, below)) if i + 1 == d.layer.index => {
+            Some((i, below)) if i + 1 == d.layer.index && !d.layer.on_bed() => {
                 // The moved perimeters come in pieces: so do the regions they leave.
                 let opts = crate::geometry::DetectOptions {
                     min_area: self.opts.detect.min_area.min(0.1),

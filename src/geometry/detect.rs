@@ -246,7 +246,7 @@ where
             .map(|((p, a), b)| {
                 let l = &p.layer;
                 // The first layer rests on the bed.
-                if l.kind != LayerKind::Layer || l.index == 0 || p.proven {
+                if l.kind != LayerKind::Layer || l.on_bed() || p.proven {
                     return Vec::new();
                 }
                 match (a, b) {
@@ -302,7 +302,7 @@ fn prove_window(
             if p.layer.kind != LayerKind::Layer {
                 return false;
             }
-            if p.layer.index == 0 {
+            if p.layer.on_bed() {
                 return true;
             }
             if !opts.prove {

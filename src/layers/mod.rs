@@ -131,6 +131,16 @@ impl Layer {
     pub fn line_count(&self) -> u64 {
         (self.last_line + 1).saturating_sub(self.first_line)
     }
+
+    /// Whether the layer is printed on the bed: the first layer, or a layer whose bottom
+    /// (Z less its height) lies within half its height of the bed. Sequential printing
+    /// (PrusaSlicer's complete objects) comes back down to the bed for each object, and the
+    /// layer before that object's first is another object's top: nothing of it is over air.
+    pub fn on_bed(&self) -> bool {
+        self.kind == LayerKind::Layer
+            && (self.index == 0
+                || (self.height > 0.0 && self.z - self.height <= 0.5 * self.height + 1e-6))
+    }
 }
 
 /// How layer boundaries are found.

@@ -236,3 +236,47 @@ fn frustums_at_42_and_63_degrees_leave_no_layer_worse() {
         }
     }
 }
+
+#[test]
+fn sequential_printing_starts_each_copy_on_the_bed() {
+    // Two copies printed one after the other: the second copy's first layer comes after the
+    // first copy's top, and rests on the bed, not on that top.
+    let Some(data) = slice("ledge_post", &["--duplicate", "2", "--complete-objects"]) else {
+        return;
+    };
+    let layers = all_layers(&data);
+    let restarts = layers
+        .windows(2)
+        .filter(|w| w[0].kind == LayerKind::Layer && w[1].z < w[0].z - 1.0)
+        .count();
+    assert_eq!(
+        restarts, 1,
+        "the copies are not printed one after the other"
+    );
+    let (new, rep) = rewrite(&data, BridgeMode::Keep);
+    // Only the two ledges are rewritten, each at its copy's ledge height.
+    assert_eq!(rep.regions_rewritten, 2, "{:?}", rep.rewrites);
+    for r in &rep.rewrites {
+        assert!(r.z > 3.0 && r.z < 3.5 && r.loops > 0, "{r:?}");
+    }
+    let (before, after) = (check(&data), check(&new));
+    for (l, (b, a)) in layers
+        .iter()
+        .filter(|l| l.kind == LayerKind::Layer)
+        .zip(before.layers.iter().zip(&after.layers))
+    {
+        if l.on_bed() {
+            assert!(
+                b.in_air_mm < 1e-9 && a.in_air_mm < 1e-9,
+                "layer {} on the bed",
+                b.layer
+            );
+        }
+    }
+    assert!(
+        after.in_air_mm < 0.05 * before.in_air_mm,
+        "{} {}",
+        after.in_air_mm,
+        before.in_air_mm
+    );
+}
