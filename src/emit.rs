@@ -477,8 +477,8 @@ const ANCHOR_WIDTHS: f64 = 4.0;
 /// up to [`TAIL_MAX`], is anchored (extended by at most [`ANCHOR_WIDTHS`] widths onto the nearest
 /// material that holds it, the run then held at both ends like a short bridge); failing
 /// that it is cut back to its first supported point, unless a strand printed after it on
-/// this layer rests on it. Paths with arcs are left as they are (their moves are not one
-/// segment each).
+/// this layer or on the layer `above` rests on it (no cut when the layer above is not known).
+/// Paths with arcs, and moves in relative coordinates, are left as they are.
 fn dangling_tails(
     layer: &Layer,
     below: &Layer,
@@ -570,10 +570,13 @@ fn dangling_tails(
                     }
                     continue;
                 }
+                // What the layer above rests on is known only when it was read: no cut
+                // without it.
+                let Some(above) = above else {
+                    continue;
+                };
                 let run: Vec<[f64; 2]> = sub_polyline(&path.points, a, b);
-                let later = layer.paths[k + 1..]
-                    .iter()
-                    .chain(above.iter().flat_map(|a| a.paths.iter()));
+                let later = layer.paths[k + 1..].iter().chain(above.paths.iter());
                 if leaned_on(&run, path.width / 2.0, later) {
                     continue;
                 }
