@@ -62,6 +62,7 @@ impl Motion {
 }
 
 /// One region to rewrite in a layer.
+#[derive(Clone)]
 pub struct RegionRewrite {
     /// 1-based, file-wide.
     pub id: usize,
@@ -656,6 +657,98 @@ fn leaned_on<'a>(
     })
 }
 
+/// A gradual overhang's strands with their ends anchored: a moved perimeter (or the half
+/// loop under it) that starts or ends past the layer below (where a sloped face meets a
+/// vertical one) is extended by at most [`ANCHOR_WIDTHS`] widths onto the nearest material
+/// of the layer below that holds it, as the slicer's infill ends are ([`dangling_tails`]).
+/// `below` is the layer below as written (read back when poa rewrote it).
+fn anchor_gradual(
+    r: &RegionRewrite,
+    layer: &Layer,
+    below: &Layer,
+    motion: &Motion,
+    flow: f64,
+) -> RegionRewrite {
+    let mut r = r.clone();
+    let Some(b) = geo::BoundingRect::bounding_rect(&r.plan.zone) else {
+        return r;
+    };
+    let m = TAIL_NEAR;
+    let area = [(
+        [b.min().x - m, b.min().y - m],
+        [b.max().x + m, b.max().y + m],
+    )];
+    let mut sup = crate::check::EndSupport::new(below, &area, motion.filament_area);
+    // The block goes in where the slicer's external perimeter first comes near the zone:
+    // what the layer printed before that (its inner perimeters, usually) holds it too.
+    let near = |q: &[f64; 2]| {
+        q[0] >= b.min().x - 1.0
+            && q[0] <= b.max().x + 1.0
+            && q[1] >= b.min().y - 1.0
+            && q[1] <= b.max().y + 1.0
+    };
+    let block_line = layer
+        .paths
+        .iter()
+        .filter(|p| matches!(p.role, Role::ExternalPerimeter | Role::OverhangPerimeter))
+        .filter(|p| p.points.iter().any(near))
+        .filter_map(|p| p.seg_line.first().copied())
+        .min()
+        .unwrap_or(0);
+    for p in layer
+        .paths
+        .iter()
+        .filter(|p| p.role == Role::Perimeter && p.seg_line.last().is_some_and(|&l| l < block_line))
+    {
+        sup.add(p);
+    }
+    let height = if layer.height > 0.0 {
+        layer.height
+    } else {
+        0.2
+    };
+    for s in &mut r.plan.strands {
+        let n = s.points.len();
+        // A closed ring has no end to hang.
+        if n < 2 || polyline_length(&[s.points[0], s.points[n - 1]]) < 1e-9 {
+            continue;
+        }
+        let per_mm = motion.e_per_mm(s.width, height, flow);
+        let path = crate::layers::Path {
+            role: Role::ExternalPerimeter,
+            width: s.width,
+            height,
+            z: layer.z,
+            object: None,
+            tool: 0,
+            points: s.points.clone(),
+            seg_line: (0..n as u64 - 1).collect(),
+            seg_e: s
+                .points
+                .windows(2)
+                .map(|w| polyline_length(w) * per_mm)
+                .collect(),
+            feed: 0.0,
+        };
+        let dd = sup.dangling(&path, TAIL_MAX);
+        let Some((head, tail)) = dd else {
+            continue;
+        };
+        let reach = ANCHOR_WIDTHS * s.width;
+        if tail >= TAIL_MIN {
+            if let Some(q) = sup.anchor(s.points[n - 1], s.width, reach) {
+                s.points.push(q);
+            }
+        }
+        if head >= TAIL_MIN {
+            if let Some(q) = sup.anchor(s.points[0], s.width, reach) {
+                s.points.insert(0, q);
+            }
+        }
+    }
+    r
+}
+
 /// Sorted intervals with overlapping ones joined.
 fn merge_intervals(sorted: Vec<(f64, f64)>) -> Vec<(f64, f64)> {
     let mut out: Vec<(f64, f64)> = Vec::with_capacity(sorted.len());
@@ -1239,6 +1332,10 @@ pub struct PoaPass<'a> {
     /// The strands of the layer before the one being rewritten, as read (the deposition
     /// model that trims sparse-infill ends over air stands on them); see [`PoaPass::keep_below`].
     below_layer: Option<Layer>,
+    /// The last layer this pass rewrote, read back from the bytes it wrote: what the layer
+    /// above really stands on (moved perimeters, loops, cut and anchored ends).
+    reread: Option<Layer>,
+    config: SlicerConfig,
     /// What the pass did so far.
     pub report: ProcessReport,
 }
@@ -1253,6 +1350,8 @@ impl<'a> PoaPass<'a> {
             next_id: 0,
             rewritten_below: None,
             below_layer: None,
+            reread: None,
+            config: config.clone(),
             report: ProcessReport::default(),
         }
     }
@@ -1299,7 +1398,10 @@ impl<'a> PoaPass<'a> {
     /// rewrite judges the slicer's strand ends against it. A driver that does not call this
     /// gets no end trimming.
     pub fn keep_below(&mut self, layer: Layer) {
-        self.below_layer = Some(layer);
+        self.below_layer = match self.reread.take() {
+            Some(r) if r.index == layer.index => Some(r),
+            _ => Some(layer),
+        };
     }
 
     /// Plans the chosen regions on all cores; regions where no loop fits go to the report.
@@ -1426,6 +1528,19 @@ impl PoaPass<'_> {
             self.plan(d, area(), &chosen)
         };
         let layer = &d.layer;
+        let below = self
+            .below_layer
+            .as_ref()
+            .filter(|b| b.index + 1 == layer.index && b.kind == layer.kind);
+        let rewrites: Vec<RegionRewrite> = rewrites
+            .into_iter()
+            .map(|r| match below {
+                Some(b) if r.plan.with_perimeter => {
+                    anchor_gradual(&r, layer, b, &self.motion, self.opts.settings.flow_factor)
+                }
+                _ => r,
+            })
+            .collect();
         // Only a gradual overhang's plan moves the outline the layer above stands on (a wide
         // region's loops fill its zone): the layer as rewritten is made only then, since
         // buffering every loop of a big region costs as much as the region search.
@@ -1447,10 +1562,6 @@ impl PoaPass<'_> {
         let rewritten = if rewrites.is_empty() {
             None
         } else {
-            let below = self
-                .below_layer
-                .as_ref()
-                .filter(|b| b.index + 1 == layer.index && b.kind == layer.kind);
             let (bytes, stats) = rewrite_layer(
                 layer,
                 [below, above.filter(|a| a.index == layer.index + 1)],
@@ -1459,11 +1570,61 @@ impl PoaPass<'_> {
                 &self.opts.settings,
             );
             self.account(layer, &bytes, stats);
+            self.reread = reread(layer, &bytes, &self.config);
             Some(bytes)
         };
         self.limits.track_limits(&layer.raw);
         Ok(rewritten)
     }
+}
+
+/// `layer` as rewritten (`bytes`), read back: the interpreter's state where the layer starts
+/// (modes, E counter, position) is stated first, then the bytes go through the layer reader.
+/// `None` when the layer has no start state or reads back as no layer.
+fn reread(layer: &Layer, bytes: &[u8], config: &SlicerConfig) -> Option<Layer> {
+    let start = layer.start.as_deref()?;
+    let p = start.position();
+    if !(p.iter().all(|v| v.is_finite()) && start.e_logical().is_finite()) {
+        return None;
+    }
+    let mut text = format!(
+        "G90\n{}\nG92 E{}\nG0 X{} Y{} Z{}\n{}",
+        if start.e_relative() { "M83" } else { "M82" },
+        start.e_logical(),
+        p[0],
+        p[1],
+        p[2],
+        if start.xyz_relative() { "G91\n" } else { "" }
+    )
+    .into_bytes();
+    text.extend_from_slice(bytes);
+    let reader = crate::layers::LayerReader::new(
+        &text[..],
+        crate::layers::ReaderOptions {
+            keep_raw: false,
+            config: config.clone(),
+        },
+    );
+    let mut paths = Vec::new();
+    for l in reader {
+        let l = l.ok()?;
+        if l.kind == crate::layers::LayerKind::Layer {
+            paths.extend(l.paths);
+        }
+    }
+    Some(Layer {
+        kind: layer.kind,
+        index: layer.index,
+        marker_number: layer.marker_number,
+        z: layer.z,
+        height: layer.height,
+        paths,
+        first_line: layer.first_line,
+        last_line: layer.last_line,
+        raw: Vec::new(),
+        start: None,
+        objects: None,
+    })
 }
 
 /// Rewrites a whole file, streaming: reads `input`, writes `output`.

@@ -211,6 +211,20 @@ fn arms_at_60_degrees_bridge_less() {
             unsupported(&after),
             unsupported(&before)
         );
+        // Every sloped layer (the arms rise from Z 2 to 12): what hung in air is held up,
+        // to a tenth, or to 0.3 mm where that is more (a sample or three of the check).
+        for (b, a) in before.layers.iter().zip(&after.layers) {
+            if b.z > 4.0 && b.z < 11.0 && b.in_air_mm >= 1.5 {
+                assert!(
+                    a.in_air_mm <= (0.1 * b.in_air_mm).max(0.3),
+                    "{what}: layer {} (Z {}) {:.2} mm in air, {:.2} before",
+                    b.layer,
+                    b.z,
+                    a.in_air_mm,
+                    b.in_air_mm
+                );
+            }
+        }
     }
 }
 
