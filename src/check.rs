@@ -11,6 +11,9 @@
 //! Unsupported runs are *bridged* when supported points bound them on both sides and they span
 //! at most `max_bridge` mm, else *in air*. Density = extruded volume / footprint area / height
 //! (about 1.0 for a normal layer).
+//!
+//! [`EndSupport`] is the same model for the rewrite: where a strand's ends hang in air, and
+//! where material close by would hold them.
 
 use geo::Area;
 use serde::Serialize;

@@ -12,6 +12,11 @@
 //!   retraction, and in absolute-E mode the E counter (re-synced with G92).
 //! - E bookkeeping is exact in both M82 and M83: every line outside the changes extrudes
 //!   exactly what it did.
+//! - The one other change: an infill end beside a zone that the deposition check would find
+//!   hanging over air (judged against the layer below as written, read back when poa
+//!   rewrote it) gets a short anchor onto material that holds it, or is cut back when nothing
+//!   is near and nothing printed later rests on it; that is why a layer is rewritten only once
+//!   the layer above it has been read.
 
 use std::io::{self, BufRead, Write};
 
