@@ -193,6 +193,11 @@ pub struct EndSupport {
     opts: CheckOptions,
 }
 
+/// Widest angle (rad) between a strand's direction out of its end and the anchor drawn on
+/// from it: an anchor may turn aside to a neighbouring bead, not double back along the run
+/// it is to hold (which would hold nothing).
+const ANCHOR_CONE: f64 = 150.0 * std::f64::consts::PI / 180.0;
+
 impl EndSupport {
     /// The model of the layer `below` inside the boxes (lower, upper corner).
     pub fn new(below: &Layer, boxes: &[([f64; 2], [f64; 2])], filament_area: f64) -> EndSupport {
@@ -252,7 +257,9 @@ impl EndSupport {
     /// The nearest point to `end` (at most `max` mm away) where a strand of width `w` would
     /// be supported, with a sample's half step to spare: where a strand hanging off at `end`
     /// can be extended to, so that its run over air is held at both ends.
-    pub fn anchor(&self, end: [f64; 2], w: f64, max: f64) -> Option<[f64; 2]> {
+    /// `ahead` is the strand's direction out of `end`: an anchor goes on or aside (within
+    /// [`ANCHOR_CONE`] of it), never straight back over the run it is to hold.
+    pub fn anchor(&self, end: [f64; 2], ahead: [f64; 2], w: f64, max: f64) -> Option<[f64; 2]> {
         let g = &self.grid;
         if !(end[0].is_finite() && end[1].is_finite()) || g.segs.is_empty() {
             return None;
@@ -273,7 +280,9 @@ impl EndSupport {
             // Deep enough that the samples of the last step are held too.
             let need = (s.half + reach - self.opts.step).max(0.0);
             let go = (d - need).max(0.0);
-            if go <= max && best.is_none_or(|b| go < b.0) && d > 1e-9 {
+            let dir = (c[0] - end[0]) * ahead[0] + (c[1] - end[1]) * ahead[1];
+            let forward = d > 1e-9 && dir >= ANCHOR_CONE.cos() * d * ahead[0].hypot(ahead[1]);
+            if go <= max && best.is_none_or(|b| go < b.0) && forward {
                 let f = go / d;
                 best = Some((
                     go,
@@ -706,7 +715,7 @@ mod tests {
         );
         // The wall at X 12 is 0.7 mm from the end: an anchor reaches it; with the anchor the
         // run is held at both ends.
-        let q = sup.anchor([11.3, 0.0], 0.45, 1.8).unwrap();
+        let q = sup.anchor([11.3, 0.0], [1.0, 0.0], 0.45, 1.8).unwrap();
         assert!(q[0] > 11.3 && q[0] < 12.0 && q[1].abs() < 1e-9, "{q:?}");
         let mut long = s.clone();
         long.points.push(q);
@@ -722,7 +731,7 @@ mod tests {
         assert!(c.in_air_mm < 1e-9 && c.bridged_mm > 1.0, "{c:?}");
         assert_eq!(sup.dangling(&long, 5.0).map(|d| d.1), Some(0.0));
         // Nothing within reach: no anchor; a run longer than asked for: not an end.
-        assert!(sup.anchor([11.3, 0.0], 0.45, 0.3).is_none());
+        assert!(sup.anchor([11.3, 0.0], [1.0, 0.0], 0.45, 0.3).is_none());
         assert!(sup.dangling(&s, 0.5).is_none());
         // A strand starting over air has a head run instead.
         let back = strand(vec![[11.3, 3.0], [2.0, 3.0]], 0.45);

@@ -555,11 +555,12 @@ fn dangling_tails(
                 else {
                     continue;
                 };
-                let (seg, end) = if at_start {
-                    (0, path.points[0])
+                let (seg, end, inner) = if at_start {
+                    (0, path.points[0], path.points[1])
                 } else {
-                    (n - 1, path.points[n])
+                    (n - 1, path.points[n], path.points[n - 1])
                 };
+                let ahead = [end[0] - inner[0], end[1] - inner[1]];
                 // An end in or at a zone is taken out or rests on the loops printed first.
                 if zones.iter().any(|z| {
                     use geo::{Distance, Euclidean};
@@ -567,7 +568,7 @@ fn dangling_tails(
                 }) {
                     continue;
                 }
-                if let Some(q) = sup.anchor(end, path.width, ANCHOR_WIDTHS * path.width) {
+                if let Some(q) = sup.anchor(end, ahead, path.width, ANCHOR_WIDTHS * path.width) {
                     let i = entry(&mut tails, path.seg_line[seg], region);
                     if at_start {
                         tails[i].before = Some(q);
@@ -741,12 +742,16 @@ fn anchor_gradual(
         };
         let reach = ANCHOR_WIDTHS * s.width;
         if tail >= TAIL_MIN {
-            if let Some(q) = sup.anchor(s.points[n - 1], s.width, reach) {
+            let (end, inner) = (s.points[n - 1], s.points[n - 2]);
+            let ahead = [end[0] - inner[0], end[1] - inner[1]];
+            if let Some(q) = sup.anchor(end, ahead, s.width, reach) {
                 s.points.push(q);
             }
         }
         if head >= TAIL_MIN {
-            if let Some(q) = sup.anchor(s.points[0], s.width, reach) {
+            let (end, inner) = (s.points[0], s.points[1]);
+            let ahead = [end[0] - inner[0], end[1] - inner[1]];
+            if let Some(q) = sup.anchor(end, ahead, s.width, reach) {
                 s.points.insert(0, q);
             }
         }
@@ -1803,6 +1808,69 @@ pub fn update_binary_metadata(file: &mut crate::bgcode::Bgcode, report: &Process
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A strand of a 0.45 mm bead at 0.2 mm on 1.75 mm filament, each segment its own line
+    /// from `line` on.
+    fn bead(role: Role, pts: &[[f64; 2]], line: u64) -> crate::layers::Path {
+        let fa = crate::layers::filament_area(1.75);
+        let area = (0.45 - 0.2) * 0.2 + std::f64::consts::PI * 0.04 / 4.0;
+        let mut p = crate::layers::testing::path(role, 0.45, pts);
+        p.seg_e = pts
+            .windows(2)
+            .map(|w| polyline_length(w) * area / fa)
+            .collect();
+        p.seg_line = (line..line + pts.len() as u64 - 1).collect();
+        p
+    }
+
+    #[test]
+    fn a_dangling_infill_end_is_anchored_or_cut_only_when_nothing_rests_on_it() {
+        use crate::layers::testing::layer;
+        let fa = crate::layers::filament_area(1.75);
+        // Below: a line along X to X 10 (its bead to 10.2), and a wall along Y at X 12.
+        let line_below = bead(Role::Infill, &[[0.0, 0.0], [10.0, 0.0]], 1);
+        let wall = bead(Role::Perimeter, &[[12.0, -5.0], [12.0, 5.0]], 2);
+        // This layer: infill along the line, 1.3 mm past its end (line 100 is the move).
+        let strand = bead(Role::Infill, &[[2.0, 0.0], [11.3, 0.0]], 100);
+        let here = layer(1, vec![strand]);
+        // A zone near by (within 10 mm), not touching the strand's end.
+        let zone = MultiPolygon::new(vec![geo::Rect::new(
+            geo::coord! {x: 14.0, y: -3.0},
+            geo::coord! {x: 20.0, y: 3.0},
+        )
+        .to_polygon()]);
+        let boxes = [geo::BoundingRect::bounding_rect(&zone)];
+        let zones = [&zone];
+        let empty = layer(2, Vec::new());
+        let run = |below: &Layer, above: Option<&Layer>| {
+            dangling_tails(&here, below, above, &zones, &boxes, fa)
+        };
+        // The wall is 0.7 mm on: the end is extended onto it.
+        let with_wall = layer(0, vec![line_below.clone(), wall]);
+        let t = run(&with_wall, Some(&empty));
+        assert_eq!(t.len(), 1);
+        let q = t[0].after.expect("anchored");
+        assert!(t[0].line == 100 && t[0].cut.is_empty() && t[0].before.is_none());
+        assert!(q[0] > 11.3 && q[0] < 12.0 && q[1].abs() < 1e-9, "{q:?}");
+        // No wall: nothing to anchor on, nothing above rests on it: cut back to X ~10.
+        let bare = layer(0, vec![line_below]);
+        let t = run(&bare, Some(&empty));
+        assert_eq!(t.len(), 1);
+        let (a, b) = t[0].cut[0];
+        assert!(
+            (b - 9.3).abs() < 1e-9 && a > 7.8 && a < 8.3,
+            "{:?}",
+            t[0].cut
+        );
+        // A strand of the layer above crosses the hanging end: it stays.
+        let above = layer(
+            2,
+            vec![bead(Role::Infill, &[[10.9, -2.0], [10.9, 2.0]], 200)],
+        );
+        assert!(run(&bare, Some(&above)).is_empty());
+        // The layer above unknown: no cut.
+        assert!(run(&bare, None).is_empty());
+    }
 
     #[test]
     fn short_loops_are_slowed_to_their_cooling_time_within_limits() {
