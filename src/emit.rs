@@ -1593,17 +1593,23 @@ impl PoaPass<'_> {
 /// `None` when the layer has no start state or reads back as no layer.
 fn reread(layer: &Layer, bytes: &[u8], config: &SlicerConfig) -> Option<Layer> {
     let start = layer.start.as_deref()?;
+    // A G92 shift of X/Y/Z cannot be stated in a line that leaves the next ones alone.
+    if start.shifted() {
+        return None;
+    }
     let p = start.position();
     if !(p.iter().all(|v| v.is_finite()) && start.e_logical().is_finite()) {
         return None;
     }
+    // Stated in mm, then the file's own units and distance mode for its lines.
     let mut text = format!(
-        "G90\n{}\nG92 E{}\nG0 X{} Y{} Z{}\n{}",
+        "G21\nG90\n{}\nG92 E{}\nG0 X{} Y{} Z{}\n{}{}",
         if start.e_relative() { "M83" } else { "M82" },
         start.e_logical(),
         p[0],
         p[1],
         p[2],
+        if start.inches() { "G20\n" } else { "" },
         if start.xyz_relative() { "G91\n" } else { "" }
     )
     .into_bytes();

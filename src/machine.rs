@@ -266,6 +266,16 @@ impl Machine {
         self.xyz_relative
     }
 
+    /// Whether a `G92` shifted X, Y or Z away from the machine's coordinates.
+    pub fn shifted(&self) -> bool {
+        self.offset.iter().any(|o| *o != 0.0)
+    }
+
+    /// Whether coordinates are read in inches (G20 in force).
+    pub fn inches(&self) -> bool {
+        self.unit != 1.0
+    }
+
     /// Interprets one parsed line.
     pub fn step(&mut self, p: &Parsed<'_>, line: u64) -> Action {
         let action = self.interpret(p, line);
