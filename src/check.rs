@@ -300,23 +300,31 @@ impl EndSupport {
     /// supported sample within it).
     pub fn dangling(&self, path: &Path, max_run: f64) -> Option<(f64, f64)> {
         let opts = &self.opts;
-        // (start along the path, segment, width) of every segment with a length.
-        let mut segs: Vec<(f64, Seg, f64)> = Vec::with_capacity(path.points.len());
+        // Every segment with a length: where it starts along the path, its length and width.
+        struct Piece {
+            start: f64,
+            len: f64,
+            seg: Seg,
+            w: f64,
+        }
+        let mut segs: Vec<Piece> = Vec::with_capacity(path.points.len());
         let mut along = 0.0;
         for i in 0..path.points.len().saturating_sub(1) {
             let (a, b) = (path.points[i], path.points[i + 1]);
             let len = ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2)).sqrt();
             if len > 1e-9 {
                 let w = seg_width(path, i, self.filament_area);
-                segs.push((
-                    along,
-                    Seg {
-                        a,
-                        b,
-                        half: w / 2.0,
-                    },
+                let seg = Seg {
+                    a,
+                    b,
+                    half: w / 2.0,
+                };
+                segs.push(Piece {
+                    start: along,
+                    len,
+                    seg,
                     w,
-                ));
+                });
                 along += len;
             }
         }
@@ -324,32 +332,30 @@ impl EndSupport {
         let mut hint = None;
         // Whether the sample `k` of `n` of segment `i` is held; its distance along the path.
         let mut sample = |i: usize, k: usize, n: usize| -> (f64, bool) {
-            let (start, s, w) = segs[i];
+            let Piece {
+                start,
+                len,
+                seg: s,
+                w,
+            } = segs[i];
             let t = (k as f64 + 0.5) / n as f64;
             let p = [
                 s.a[0] + t * (s.b[0] - s.a[0]),
                 s.a[1] + t * (s.b[1] - s.a[1]),
             ];
-            let len = ((s.b[0] - s.a[0]).powi(2) + (s.b[1] - s.a[1]).powi(2)).sqrt();
             let at = start + t * len;
             let reach = (0.5 - opts.overlap_min) * w;
             let held = self.grid.near(p, reach, &mut hint)
-                || segs[..i].iter().any(|(o_start, o, _)| {
-                    let o_end =
-                        o_start + ((o.b[0] - o.a[0]).powi(2) + (o.b[1] - o.a[1]).powi(2)).sqrt();
-                    at - o_end >= 2.0 * w && o.distance(p) - o.half <= reach
+                || segs[..i].iter().any(|o| {
+                    at - (o.start + o.len) >= 2.0 * w && o.seg.distance(p) - o.seg.half <= reach
                 });
             (at, held)
         };
-        let count = |i: usize| {
-            let (_, s, _) = segs[i];
-            let len = ((s.b[0] - s.a[0]).powi(2) + (s.b[1] - s.a[1]).powi(2)).sqrt();
-            ((len / opts.step).ceil() as usize).clamp(1, 1_000_000)
-        };
+        let count = |i: usize| ((segs[i].len / opts.step).ceil() as usize).clamp(1, 1_000_000);
         // The first held sample from the start, within `max_run`.
         let mut head = None;
-        'head: for (i, &(start, _, _)) in segs.iter().enumerate() {
-            if start > max_run {
+        'head: for (i, piece) in segs.iter().enumerate() {
+            if piece.start > max_run {
                 break;
             }
             let n = count(i);
