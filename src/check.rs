@@ -466,12 +466,30 @@ fn segments(layer: &Layer, filament_area: f64) -> impl Iterator<Item = Seg> + '_
     })
 }
 
-/// Checks `layer` against the layer below it. `keep_samples` keeps every sample (for pictures
-/// and tests).
+/// The layers among `recent` (earlier layers, in any order) that `layer` rests on
+/// ([`Layer::rests_on`]).
+pub fn resting_on<'a>(
+    layer: &Layer,
+    recent: impl Iterator<Item = &'a Layer> + Clone,
+) -> Vec<&'a Layer> {
+    layer
+        .rests_on
+        .iter()
+        .filter_map(|&i| {
+            recent
+                .clone()
+                .find(|l| l.index == i && l.kind == layer.kind)
+        })
+        .collect()
+}
+
+/// Checks `layer` against the layers below it (those it rests on: one, unless objects of
+/// different layer heights interleave). `keep_samples` keeps every sample (for pictures and
+/// tests).
 ///
 /// Long by design: measures one layer's strands against the layer below in one pass, with the per-layer tallies every case updates.
 pub fn check_layer(
-    below: Option<&Layer>,
+    below: &[&Layer],
     layer: &Layer,
     filament_area: f64,
     opts: &CheckOptions,
@@ -482,10 +500,10 @@ pub fn check_layer(
         z: layer.z,
         ..Default::default()
     };
-    let (min, max) = bounds(below.into_iter().chain(std::iter::once(layer)));
+    let (min, max) = bounds(below.iter().copied().chain(std::iter::once(layer)));
     let mut grid = Grid::new(1.0, min, max);
     let on_bed = layer.on_bed();
-    if let Some(b) = below {
+    for b in below {
         for s in segments(b, filament_area) {
             grid.insert(s);
         }
@@ -708,7 +726,7 @@ mod tests {
         assert!(tail > 1.0 && tail < 1.4, "{tail}");
         // The run is what the check calls in air.
         let c = check_layer(
-            Some(&below),
+            &[&below],
             &layer(2, vec![s.clone()]),
             fa,
             &CheckOptions::default(),
@@ -728,7 +746,7 @@ mod tests {
         long.seg_e.push(s.seg_e[0] / 9.3 * (q[0] - 11.3));
         long.seg_line.push(2);
         let c = check_layer(
-            Some(&below),
+            &[&below],
             &layer(2, vec![long.clone()]),
             fa,
             &CheckOptions::default(),
@@ -750,7 +768,7 @@ mod tests {
         let below = disk(5.0);
         let above = rings(4.9, 8.0, 0.30);
         let c = check_layer(
-            Some(&below),
+            &[&below],
             &above,
             filament_area(1.75),
             &CheckOptions::default(),
@@ -765,7 +783,7 @@ mod tests {
         let below = disk(5.0);
         let above = rings(4.9, 8.0, 0.45);
         let c = check_layer(
-            Some(&below),
+            &[&below],
             &above,
             filament_area(1.75),
             &CheckOptions::default(),
@@ -786,18 +804,12 @@ mod tests {
             ],
         );
         let across = layer(2, vec![strand(vec![[0.0, 0.0], [20.0, 0.0]], 0.45)]);
-        let c = check_layer(Some(&below), &across, fa, &CheckOptions::default(), false);
+        let c = check_layer(&[&below], &across, fa, &CheckOptions::default(), false);
         assert!(c.in_air_mm < 1e-9, "{c:?}");
         assert!((c.bridged_mm - 10.0).abs() < 1.0, "{c:?}");
         let cantilever = layer(2, vec![strand(vec![[0.0, 0.0], [45.0, 0.0]], 0.45)]);
         let below = layer(1, vec![strand(vec![[0.0, 0.0], [5.0, 0.0]], 0.45)]);
-        let c = check_layer(
-            Some(&below),
-            &cantilever,
-            fa,
-            &CheckOptions::default(),
-            false,
-        );
+        let c = check_layer(&[&below], &cantilever, fa, &CheckOptions::default(), false);
         assert!((c.in_air_mm - 40.0).abs() < 1.0, "{c:?}");
         assert!((c.longest_in_air_mm - 40.0).abs() < 1.0);
     }
@@ -811,7 +823,7 @@ mod tests {
             })
             .collect();
         let c = check_layer(
-            None,
+            &[],
             &layer(0, paths),
             filament_area(1.75),
             &CheckOptions::default(),

@@ -73,6 +73,9 @@ pub struct RegionRewrite {
     pub id: usize,
     pub kind: RegionKind,
     pub plan: Plan,
+    /// Bead height of the rewrite (mm): the height the slicer laid the region's object at on
+    /// this layer (objects of different layer heights share a layer).
+    pub height: f64,
 }
 
 /// What a region's rewrite changed.
@@ -286,7 +289,6 @@ pub fn rewrite_layer(
                         &mut out,
                         nl,
                         &before,
-                        layer,
                         rewrites[*i],
                         motion,
                         settings,
@@ -357,7 +359,6 @@ pub fn rewrite_layer(
                 &mut out,
                 nl,
                 &machine,
-                layer,
                 r,
                 motion,
                 settings,
@@ -708,11 +709,7 @@ fn anchor_gradual(
     {
         sup.add(p);
     }
-    let height = if layer.height > 0.0 {
-        layer.height
-    } else {
-        0.2
-    };
+    let height = r.height;
     for s in &mut r.plan.strands {
         let n = s.points.len();
         // A closed ring has no end to hang.
@@ -984,7 +981,6 @@ fn emit_block(
     out: &mut Vec<u8>,
     nl: &'static str,
     before: &Machine,
-    layer: &Layer,
     rewrite: &RegionRewrite,
     motion: &Motion,
     settings: &PoaSettings,
@@ -1024,11 +1020,7 @@ fn emit_block(
     ));
     w.line(";TYPE:Overhang perimeter");
     let was_retracted = before.is_retracted();
-    let height = if layer.height > 0.0 {
-        layer.height
-    } else {
-        0.2
-    };
+    let height = rewrite.height;
     let mut travel = 0.0;
     let mut time = 0.0;
     // Get to the first strand like the file travels.
@@ -1434,22 +1426,22 @@ impl<'a> PoaPass<'a> {
         };
         let settings = &self.opts.settings;
         let below = match &self.rewritten_below {
-            Some((i, area)) if i + 1 == layer.index => area,
+            Some((i, area)) if i + 1 == layer.index && layer.on_previous() => area,
             // A layer with regions of its own always has the area below.
             _ => d.below.as_ref().unwrap_or(&crate::geometry::NO_AREA),
         };
-        let plans: Vec<(usize, RegionKind, Plan)> = {
+        let plans: Vec<(usize, RegionKind, Plan, f64)> = {
             use rayon::prelude::*;
             chosen
                 .par_iter()
                 .map(|(id, r)| {
                     let plan = crate::poa::plan(r, below, area, widths, settings, start);
-                    (*id, r.kind, plan)
+                    (*id, r.kind, plan, object_height(layer, r.object))
                 })
                 .collect()
         };
         let mut rewrites = Vec::new();
-        for (id, kind, plan) in plans {
+        for (id, kind, plan, height) in plans {
             if plan.strands.is_empty() {
                 self.report.skipped.push(SkippedRegion {
                     region: id,
@@ -1458,7 +1450,12 @@ impl<'a> PoaPass<'a> {
                     reason: "no loop fits".into(),
                 });
             } else {
-                rewrites.push(RegionRewrite { id, kind, plan });
+                rewrites.push(RegionRewrite {
+                    id,
+                    kind,
+                    plan,
+                    height,
+                });
             }
         }
         rewrites
@@ -1520,7 +1517,9 @@ impl PoaPass<'_> {
         let own_area = std::cell::OnceCell::new();
         let area = || own_area.get_or_init(|| d.area_or_compute(&self.opts.detect));
         let (regions, above_rewrite) = match &self.rewritten_below {
-            Some((i, below)) if i + 1 == d.layer.index && !d.layer.on_bed() => {
+            Some((i, below))
+                if i + 1 == d.layer.index && !d.layer.on_bed() && d.layer.on_previous() =>
+            {
                 // The moved perimeters come in pieces: so do the regions they leave.
                 let opts = crate::geometry::DetectOptions {
                     min_area: self.opts.detect.min_area.min(0.1),
@@ -1541,7 +1540,7 @@ impl PoaPass<'_> {
         let below = self
             .below_layer
             .as_ref()
-            .filter(|b| b.index + 1 == layer.index && b.kind == layer.kind);
+            .filter(|b| b.index + 1 == layer.index && b.kind == layer.kind && layer.on_previous());
         let rewrites: Vec<RegionRewrite> = rewrites
             .into_iter()
             .map(|r| match below {
@@ -1574,7 +1573,10 @@ impl PoaPass<'_> {
         } else {
             let (bytes, stats) = rewrite_layer(
                 layer,
-                [below, above.filter(|a| a.index == layer.index + 1)],
+                [
+                    below,
+                    above.filter(|a| a.index == layer.index + 1 && a.on_previous()),
+                ],
                 &rewrites,
                 &self.motion,
                 &self.opts.settings,
@@ -1585,6 +1587,28 @@ impl PoaPass<'_> {
         };
         self.limits.track_limits(&layer.raw);
         Ok(rewritten)
+    }
+}
+
+/// The bead height of `object`'s strands on `layer` (where objects of different layer heights
+/// share a layer, theirs differ from the layer's height), else the layer's height (0.2 mm when
+/// it has none).
+fn object_height(layer: &Layer, object: Option<u32>) -> f64 {
+    let fallback = if layer.height > 0.0 {
+        layer.height
+    } else {
+        0.2
+    };
+    let own: Vec<&crate::layers::Path> = layer
+        .paths
+        .iter()
+        .filter(|p| object.is_none() || p.object == object)
+        .collect();
+    let bead = crate::layers::bead_height(own.iter().copied());
+    if bead > 0.0 && bead < 10.0 && (bead - fallback).abs() > 0.1 * fallback {
+        bead
+    } else {
+        fallback
     }
 }
 
@@ -1634,6 +1658,7 @@ fn reread(layer: &Layer, bytes: &[u8], config: &SlicerConfig) -> Option<Layer> {
         marker_number: layer.marker_number,
         z: layer.z,
         height: layer.height,
+        rests_on: layer.rests_on.clone(),
         paths,
         first_line: layer.first_line,
         last_line: layer.last_line,

@@ -8,6 +8,7 @@
 //!
 //! The picture is G-code's view from above: +Y points up (SVG's Y axis is flipped here).
 
+use std::collections::VecDeque;
 use std::fmt::Write as _;
 use std::io::{self, BufRead};
 
@@ -735,18 +736,16 @@ pub fn check_layer_svg<R: BufRead>(
             config,
         },
     );
-    let mut below: Option<Layer> = None;
+    let mut recent: VecDeque<Layer> = VecDeque::new();
     for layer in reader {
         let layer = layer?;
         if layer.kind != LayerKind::Layer {
             continue;
         }
         if layer.index + 1 == number {
-            let c = crate::check::check_layer(below.as_ref(), &layer, fa, opts, true);
-            let area = below
-                .as_ref()
-                .map(|b| geometry::printed_area(b, &geometry::AreaOptions::default()))
-                .unwrap_or_else(|| MultiPolygon::new(Vec::new()));
+            let below = crate::check::resting_on(&layer, recent.iter());
+            let c = crate::check::check_layer(&below, &layer, fa, opts, true);
+            let area = area_below(&below);
             return Ok(Some(render(&Scene {
                 title,
                 layer: &layer,
@@ -756,7 +755,7 @@ pub fn check_layer_svg<R: BufRead>(
                 poa_blocks: &poa_blocks(&layer),
             })));
         }
-        below = Some(layer);
+        keep_recent(&mut recent, layer);
     }
     Ok(None)
 }
@@ -818,7 +817,7 @@ pub fn compare_page<A: BufRead, B: BufRead>(
     ];
     let mut a = print_layers(original, original_config);
     let mut b = print_layers(file, file_config);
-    let mut below: [Option<Layer>; 2] = [None, None];
+    let mut recent: [VecDeque<Layer>; 2] = [VecDeque::new(), VecDeque::new()];
     let mut pages: Vec<ComparedLayer> = Vec::new();
     let (mut differing, mut layers) = (0usize, 0usize);
     let mut above_changed = false;
@@ -833,13 +832,11 @@ pub fn compare_page<A: BufRead, B: BufRead>(
             let mut bridged = [0.0; 2];
             let mut svg = [String::new(), String::new()];
             for i in 0..2 {
-                let c = crate::check::check_layer(below[i].as_ref(), pair[i], fa[i], opts, true);
+                let below = crate::check::resting_on(pair[i], recent[i].iter());
+                let c = crate::check::check_layer(&below, pair[i], fa[i], opts, true);
                 in_air[i] = c.in_air_mm;
                 bridged[i] = c.bridged_mm;
-                let area = below[i]
-                    .as_ref()
-                    .map(|l| geometry::printed_area(l, &geometry::AreaOptions::default()))
-                    .unwrap_or_else(|| MultiPolygon::new(Vec::new()));
+                let area = area_below(&below);
                 svg[i] = render(&Scene {
                     title: names[i],
                     layer: pair[i],
@@ -858,9 +855,31 @@ pub fn compare_page<A: BufRead, B: BufRead>(
             });
         }
         above_changed = changed;
-        below = [Some(la), Some(lb)];
+        keep_recent(&mut recent[0], la);
+        keep_recent(&mut recent[1], lb);
     }
     Ok(compare_html(names, &pages, differing, layers))
+}
+
+/// Layers kept for what the next layers rest on: a few, enough for objects of different
+/// layer heights interleaving.
+const KEEP_RECENT: usize = 8;
+
+fn keep_recent(recent: &mut VecDeque<Layer>, layer: Layer) {
+    if recent.len() == KEEP_RECENT {
+        recent.pop_front();
+    }
+    recent.push_back(layer);
+}
+
+/// The printed area of the layers below, drawn under a layer.
+fn area_below(below: &[&Layer]) -> MultiPolygon<f64> {
+    below.iter().fold(MultiPolygon::new(Vec::new()), |acc, l| {
+        geometry::union(
+            &acc,
+            &geometry::printed_area(l, &geometry::AreaOptions::default()),
+        )
+    })
 }
 
 fn compare_html(

@@ -617,30 +617,37 @@ pub fn check<R: BufRead + Send>(
         time_s: 0.0,
         layers: Vec::new(),
     };
-    // Layers are checked in parallel batches; each needs the layer before it, so the last
-    // layer of a batch is carried into the next.
+    // Layers are checked in parallel batches; each needs the layers it rests on, so the last
+    // layers of a batch are carried into the next: the last one, or as many as the farthest
+    // any layer so far has rested back (objects of different layer heights interleave).
     const BATCH: usize = 4;
     let checks = geometry::read_ahead(reader.by_ref(), |layers| {
         let mut checks: Vec<LayerCheck> = Vec::new();
         let mut batch: Vec<crate::layers::Layer> = Vec::with_capacity(BATCH + 1);
-        let mut carried = false;
+        let mut carried = 0;
+        let mut span = 1;
         loop {
             let next = layers.next().transpose()?;
             let end = next.is_none();
             if let Some(l) = next.filter(|l| l.kind == LayerKind::Layer) {
                 batch.push(l);
             }
-            if batch.len() < BATCH + usize::from(carried) && !end {
+            if batch.len() < BATCH + carried && !end {
                 continue;
             }
-            let skip = usize::from(carried);
+            for l in &batch[carried..] {
+                let back = l.rests_on.iter().map(|&i| l.index.saturating_sub(i));
+                span = back
+                    .fold(span, usize::max)
+                    .min(crate::layers::RECENT_LAYERS);
+            }
             let done: Vec<LayerCheck> = {
                 use rayon::prelude::*;
-                (skip..batch.len())
+                (carried..batch.len())
                     .into_par_iter()
                     .map(|i| {
-                        let below = i.checked_sub(1).map(|j| &batch[j]);
-                        crate::check::check_layer(below, &batch[i], fa, opts, false)
+                        let below = crate::check::resting_on(&batch[i], batch[..i].iter());
+                        crate::check::check_layer(&below, &batch[i], fa, opts, false)
                     })
                     .collect()
             };
@@ -648,10 +655,8 @@ pub fn check<R: BufRead + Send>(
             if end {
                 return Ok(checks);
             }
-            let last = batch.pop();
-            batch.clear();
-            batch.extend(last);
-            carried = !batch.is_empty();
+            batch.drain(..batch.len().saturating_sub(span));
+            carried = batch.len();
         }
     })?;
     rep.time_s = reader.estimated_time().unwrap_or(0.0);

@@ -11,6 +11,7 @@
 //! are exactly those [`super::printed_area`] gives; a footprint is shared only between layers
 //! whose outline strands are equal.
 
+use std::collections::VecDeque;
 use std::io;
 
 use geo::MultiPolygon;
@@ -171,9 +172,11 @@ where
     I: Iterator<Item = io::Result<Layer>>,
     F: FnMut(Detected) -> io::Result<()>,
 {
-    // Area and support of the last layer handed on (the one below the window's first).
-    // (Nothing below the first layer: an empty area, as for `find_regions`.)
-    let mut below: Option<MultiPolygon<f64>> = Some(MultiPolygon::new(Vec::new()));
+    // Areas of the last layers handed on (index, area where computed): the last one only,
+    // unless layers rest on more than the layer before them (objects of different layer
+    // heights interleave); and the support of the last layer handed on.
+    let mut hist: VecDeque<(usize, Option<MultiPolygon<f64>>)> = VecDeque::new();
+    let mut multi = false;
     let mut below_support: Option<Support> = None;
     let mut last: Option<(Strands, MultiPolygon<f64>)> = None;
     // The last layer read is held back until the next one's proof is known.
@@ -192,6 +195,12 @@ where
             continue;
         }
         batch_bytes = 0;
+        // From the first layer that rests on more (or other) than the layer before it on,
+        // every area is computed and the recent ones kept: such a layer may rest on a layer
+        // handed on well before it.
+        multi |= fresh
+            .iter()
+            .any(|l| l.kind == LayerKind::Layer && l.index > 0 && !l.on_bed() && !l.on_previous());
         let supports: Vec<Support> = fresh
             .par_iter()
             .map(|l| {
@@ -217,26 +226,35 @@ where
         // Everything but the held-back layer is handed on (all of it at the end).
         let take = if end { window.len() } else { window.len() - 1 };
         let batch: Vec<Pending> = window.drain(..take).collect();
-        // A layer's area is needed when its own proof failed or the next layer's did.
-        let next_proven = |k: usize| -> bool {
-            batch[k + 1..]
-                .iter()
-                .chain(window.iter())
-                .find(|p| p.layer.kind == LayerKind::Layer)
-                .map_or(end, |p| p.proven)
+        // A layer's area is needed when its own proof failed or that of a layer resting on
+        // it did (the next one, unless layers interleave).
+        let rested_on_unproven = |k: usize| -> bool {
+            let i = batch[k].layer.index;
+            batch[k + 1..].iter().chain(window.iter()).any(|p| {
+                p.layer.kind == LayerKind::Layer && !p.proven && p.layer.rests_on.contains(&i)
+            })
         };
         let need: Vec<bool> = (0..batch.len())
             .map(|k| {
-                batch[k].layer.kind == LayerKind::Layer && (!batch[k].proven || !next_proven(k))
+                batch[k].layer.kind == LayerKind::Layer
+                    && (!batch[k].proven || multi || rested_on_unproven(k))
             })
             .collect();
         let layers_only: Vec<&Layer> = batch.iter().map(|p| &p.layer).collect();
         let areas = batch_areas(&layers_only, &need, &mut last, opts);
         let mut belows = Vec::with_capacity(batch.len());
+        let keep = if multi {
+            crate::layers::RECENT_LAYERS
+        } else {
+            1
+        };
         for (p, a) in batch.iter().zip(&areas) {
-            belows.push(below.clone());
+            belows.push(below_of(&p.layer, &hist));
             if p.layer.kind == LayerKind::Layer {
-                below = a.clone();
+                if hist.len() >= keep {
+                    hist.drain(..=hist.len() - keep);
+                }
+                hist.push_back((p.layer.index, a.clone()));
             }
         }
         let regions: Vec<Vec<Region>> = batch
@@ -251,8 +269,10 @@ where
                 }
                 match (a, b) {
                     (Some(a), Some(b)) => find_regions(b, l, a, opts),
-                    // Both are computed whenever the proof failed (see `need`).
-                    _ => unreachable!("area of an unproven layer or of the one below it"),
+                    // Both are computed whenever the proof failed (see `need`), but for a
+                    // layer resting on one handed on before layers were seen to interleave:
+                    // what it rests on is not known, and it is left as sliced.
+                    _ => Vec::new(),
                 }
             })
             .collect();
@@ -277,6 +297,28 @@ where
             return Ok(());
         }
     }
+}
+
+/// The area a layer rests on: the union of the areas of the layers it rests on, from the
+/// recent ones in `hist`; `None` when one of them is not there (or its area was not computed).
+/// Empty for the preamble and the first layer.
+fn below_of(
+    layer: &Layer,
+    hist: &VecDeque<(usize, Option<MultiPolygon<f64>>)>,
+) -> Option<MultiPolygon<f64>> {
+    let mut parts = layer.rests_on.iter().map(|i| {
+        hist.iter()
+            .find(|(j, _)| j == i)
+            .and_then(|(_, a)| a.as_ref())
+    });
+    let Some(first) = parts.next() else {
+        return Some(MultiPolygon::new(Vec::new()));
+    };
+    let mut union = first?.clone();
+    for a in parts {
+        union = super::union(&union, a?);
+    }
+    Some(union)
 }
 
 /// Runs the proof for the window's layers from `from` on, each against the layer below it
@@ -305,7 +347,8 @@ fn prove_window(
             if p.layer.on_bed() {
                 return true;
             }
-            if !opts.prove {
+            // The proof compares a layer with the one layer before it.
+            if !opts.prove || !p.layer.on_previous() {
                 return false;
             }
             let below = match below_of[k] {

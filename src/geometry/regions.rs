@@ -488,6 +488,7 @@ mod tests {
             marker_number: None,
             z: 1.2,
             height: 0.2,
+            rests_on: vec![4],
             paths: Vec::new(),
             first_line: 1,
             last_line: 1,

@@ -225,6 +225,8 @@ pub enum Tag {
         kind: MarkerKind,
         number: Option<i64>,
         z: Option<f64>,
+        /// The layer's thickness, where the marker states it (KISSlicer's `z_thickness`).
+        height: Option<f64>,
     },
     Z(f64),
     Height(f64),
@@ -257,6 +259,9 @@ pub enum MarkerKind {
     LayerNumber,
     /// `; layer <n>, Z = <z>` (Simplify3D).
     Simplify3D,
+    /// `; BEGIN_LAYER_OBJECT z=<z> z_thickness=<h>` (KISSlicer): one per object and layer, so
+    /// objects of different layer heights each get their own layers.
+    KISSlicer,
 }
 
 fn num(s: &str) -> Option<f64> {
@@ -297,6 +302,7 @@ pub fn parse_tag(comment: &str) -> Option<Tag> {
             kind: MarkerKind::LayerChange,
             number: None,
             z: None,
+            height: None,
         });
     }
     if c == "CHANGE_LAYER" {
@@ -304,6 +310,7 @@ pub fn parse_tag(comment: &str) -> Option<Tag> {
             kind: MarkerKind::ChangeLayer,
             number: None,
             z: None,
+            height: None,
         });
     }
     if let Some(n) = c.strip_prefix("LAYER:") {
@@ -312,6 +319,7 @@ pub fn parse_tag(comment: &str) -> Option<Tag> {
             kind: MarkerKind::LayerNumber,
             number: Some(n),
             z: None,
+            height: None,
         });
     }
     if let Some(rest) = c.strip_prefix("layer ") {
@@ -325,6 +333,21 @@ pub fn parse_tag(comment: &str) -> Option<Tag> {
             kind: MarkerKind::Simplify3D,
             number: n.trim().parse().ok(),
             z: num(z),
+            height: None,
+        });
+    }
+    if let Some(rest) = c.strip_prefix("BEGIN_LAYER_OBJECT") {
+        // KISSlicer: `BEGIN_LAYER_OBJECT z=0.300 z_thickness=0.100`
+        let field = |key: &str| {
+            rest.split_whitespace()
+                .find_map(|kv| kv.strip_prefix(key).and_then(|v| v.strip_prefix('=')))
+                .and_then(num)
+        };
+        return Some(Tag::LayerChange {
+            kind: MarkerKind::KISSlicer,
+            number: None,
+            z: field("z"),
+            height: field("z_thickness").filter(|h| *h > 0.0),
         });
     }
     if let Some(z) = c.strip_prefix("Z:").or_else(|| c.strip_prefix("Z_HEIGHT:")) {
@@ -477,7 +500,8 @@ mod tests {
             Some(Tag::LayerChange {
                 kind: MarkerKind::LayerNumber,
                 number: Some(-2),
-                z: None
+                z: None,
+                height: None
             })
         );
         assert_eq!(parse_tag("LAYER_COUNT:50"), None);
@@ -486,7 +510,17 @@ mod tests {
             Some(Tag::LayerChange {
                 kind: MarkerKind::Simplify3D,
                 number: Some(12),
-                z: Some(2.6)
+                z: Some(2.6),
+                height: None
+            })
+        );
+        assert_eq!(
+            parse_tag(" BEGIN_LAYER_OBJECT z=0.300 z_thickness=0.100"),
+            Some(Tag::LayerChange {
+                kind: MarkerKind::KISSlicer,
+                number: None,
+                z: Some(0.3),
+                height: Some(0.1)
             })
         );
         assert_eq!(parse_tag("Z:10.2"), Some(Tag::Z(10.2)));

@@ -114,6 +114,10 @@ pub struct Layer {
     pub marker_number: Option<i64>,
     pub z: f64,
     pub height: f64,
+    /// Indices of the earlier layers this one is printed on, most recent first: usually the
+    /// layer before it; several where objects of different layer heights interleave (see
+    /// [`rests_on`]); empty for the first layer and the preamble.
+    pub rests_on: Vec<usize>,
     pub paths: Vec<Path>,
     /// First and last source line (inclusive). An empty block has `last_line < first_line`.
     pub first_line: u64,
@@ -141,6 +145,69 @@ impl Layer {
             && (self.index == 0
                 || (self.height > 0.0 && self.z - self.height <= 0.5 * self.height + 1e-6))
     }
+
+    /// Whether the layer is printed on the layer just before it in the file and on nothing
+    /// else (every layer of a file with one layer height).
+    pub fn on_previous(&self) -> bool {
+        self.index > 0 && self.rests_on == [self.index - 1]
+    }
+}
+
+/// Earlier layers looked through for what a layer rests on.
+pub const RECENT_LAYERS: usize = 32;
+
+/// The layers a layer with top `z` and bead height `height` is printed on, given the
+/// `recent` layers before it (index, top Z; oldest first), most recent first.
+///
+/// Walking back through the file, a layer whose top lies between this layer's bottom and its
+/// top is under it; one at the same top is another object's part of the same layer (skipped);
+/// one above its top, or below its bottom, ends the walk (the first is sequential printing
+/// coming back down, the second a layer under the layer below). Objects sliced at different
+/// layer heights interleave: PrusaSlicer's layer at Z 0.4 of a 0.2 mm object comes after the
+/// 0.35 mm layer of a 0.15 mm object, and rests on both it and the layer at 0.2. With one
+/// layer height the walk finds exactly the layer before; when it finds nothing (a gap), the
+/// layer before is taken all the same.
+pub fn rests_on(recent: &VecDeque<(usize, f64)>, z: f64, height: f64) -> Vec<usize> {
+    // Slicers print Z to a micrometre or so; a layer step is 50 micrometres or more.
+    let eps = (0.25 * height).clamp(0.002, 0.02);
+    let bottom = z - height;
+    let mut on = Vec::new();
+    for &(i, top) in recent.iter().rev() {
+        if (top - z).abs() <= eps {
+            continue;
+        }
+        if top > z || top < bottom - eps {
+            break;
+        }
+        on.push(i);
+    }
+    if on.is_empty() {
+        on.extend(recent.back().map(|&(i, _)| i));
+    }
+    on
+}
+
+/// The bead height that carries the most of the layer's extrusion length (0 when no path
+/// states one).
+pub fn bead_height<'a>(paths: impl IntoIterator<Item = &'a Path>) -> f64 {
+    let mut by_height: Vec<(f64, f64)> = Vec::new();
+    for p in paths
+        .into_iter()
+        .filter(|p| p.height > 0.0 && p.height.is_finite())
+    {
+        let len = p.length();
+        match by_height
+            .iter_mut()
+            .find(|(h, _)| (h - p.height).abs() < 1e-3)
+        {
+            Some(e) => e.1 += len,
+            None => by_height.push((p.height, len)),
+        }
+    }
+    by_height
+        .iter()
+        .max_by(|a, b| a.1.total_cmp(&b.1))
+        .map_or(0.0, |e| e.0)
 }
 
 /// How layer boundaries are found.
@@ -249,6 +316,8 @@ struct State {
     next_index: usize,
     prev_layer_z: f64,
     last_height: f64,
+    /// The last [`RECENT_LAYERS`] layers' (index, top Z), for [`rests_on`].
+    recent: VecDeque<(usize, f64)>,
     /// The interpreter's state before the line being handled (kept only with `keep_raw`).
     before_line: Machine,
 }
@@ -409,6 +478,7 @@ impl State {
             next_index: 0,
             prev_layer_z: 0.0,
             last_height: 0.0,
+            recent: VecDeque::new(),
             before_line: Machine::new(),
         }
     }
@@ -501,7 +571,18 @@ impl State {
             return;
         };
         match tag {
-            Tag::LayerChange { kind, number: n, z } => self.marker(kind, n, z, number),
+            Tag::LayerChange {
+                kind,
+                number: n,
+                z,
+                height,
+            } => {
+                self.marker(kind, n, z, number);
+                if let Some(h) = height.filter(|_| self.marker_kind == Some(kind)) {
+                    self.cur.height_tag = Some(h);
+                    self.height_tag = Some(h);
+                }
+            }
             Tag::Z(z) => {
                 if self.cur.kind == LayerKind::Layer && self.cur.z_tag.is_none() {
                     self.cur.z_tag = Some(z);
@@ -670,6 +751,7 @@ impl State {
                 self.next_index = 0;
                 self.prev_layer_z = 0.0;
                 self.last_height = 0.0;
+                self.recent.clear();
             }
             _ => self.finish_current(line),
         }
@@ -898,6 +980,22 @@ impl State {
             self.config_layer_height.unwrap_or(z.max(0.0))
         };
         let mut paths = b.paths;
+        // A layer marker's height may be the step from the layer before (PrusaSlicer's
+        // `;HEIGHT:` where objects of different layer heights interleave: 0.05 for a 0.2 mm
+        // layer) while each extrusion states its own: the beads decide.
+        let bead = bead_height(&paths);
+        let height = if is_layer && bead > height * 1.1 + 1e-9 {
+            bead
+        } else {
+            height
+        };
+        // What the layer rests on reaches down from its tallest bead (objects of different
+        // layer heights sharing the layer: the tallest object's layer below is under it too).
+        let reach = paths
+            .iter()
+            .map(|p| p.height)
+            .filter(|h| h.is_finite() && *h < 10.0)
+            .fold(height, f64::max);
         for p in &mut paths {
             if p.height <= 0.0 {
                 p.height = if height > 0.0 {
@@ -911,7 +1009,13 @@ impl State {
             }
         }
         let index = self.next_index;
+        let mut rests = Vec::new();
         if is_layer {
+            rests = rests_on(&self.recent, z, reach);
+            if self.recent.len() == RECENT_LAYERS {
+                self.recent.pop_front();
+            }
+            self.recent.push_back((index, z));
             self.next_index += 1;
             self.prev_layer_z = z;
             self.last_height = height;
@@ -922,6 +1026,7 @@ impl State {
             marker_number: b.marker_number,
             z,
             height,
+            rests_on: rests,
             paths,
             first_line: b.first_line,
             last_line: b.last_line,
@@ -1003,6 +1108,7 @@ pub(crate) mod testing {
             marker_number: None,
             z: 0.2 * (index + 1) as f64,
             height: 0.2,
+            rests_on: index.checked_sub(1).into_iter().collect(),
             paths,
             first_line: 1,
             last_line: 1,
@@ -1184,5 +1290,80 @@ M486 S3\nM486 Abox\nG1 X20 E1\nM486 S-1\n";
         let layers: Vec<Layer> = r.by_ref().map(|l| l.unwrap()).collect();
         let e: f64 = layers.iter().flat_map(|l| &l.paths).map(|p| p.e()).sum();
         assert!((e - 2.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn a_layer_rests_on_the_layers_whose_top_is_at_its_bottom() {
+        let recent = |v: &[(usize, f64)]| v.iter().copied().collect::<VecDeque<_>>();
+        // One layer height: the layer before.
+        assert_eq!(rests_on(&recent(&[(0, 0.2), (1, 0.4)]), 0.6, 0.2), vec![1]);
+        // 0.2 mm and 0.15 mm objects interleaved: Z 0.4 of the first rests on its layer at
+        // 0.2 and on the other's at 0.35.
+        assert_eq!(
+            rests_on(&recent(&[(0, 0.2), (1, 0.35)]), 0.4, 0.2),
+            vec![1, 0]
+        );
+        // Another object's part of the same layer (KISSlicer writes one layer per object).
+        assert_eq!(rests_on(&recent(&[(0, 0.2), (1, 0.4)]), 0.4, 0.2), vec![0]);
+        // Sequential printing: the second copy's second layer rests on its first only.
+        assert_eq!(
+            rests_on(&recent(&[(0, 0.2), (1, 10.0), (2, 0.2)]), 0.4, 0.2),
+            vec![2]
+        );
+        // A gap under the layer: the layer before, as for any file.
+        assert_eq!(rests_on(&recent(&[(0, 0.2)]), 1.0, 0.2), vec![0]);
+        assert!(rests_on(&recent(&[]), 0.2, 0.2).is_empty());
+    }
+
+    #[test]
+    fn kisslicer_layers_per_object_get_their_thickness_and_what_they_rest_on() {
+        // Two objects, 0.3 mm and 0.1 mm layers, one marker per object and layer.
+        let mut src = String::from("; KISSlicer - PRO\nG21\nG90\nM82\n");
+        let mut e = 0.0;
+        let mut layer = |src: &mut String, x: f64, z: f64, h: f64| {
+            src.push_str(&format!(
+                "; BEGIN_LAYER_OBJECT z={z:.3} z_thickness={h:.3}\nG1 X{x} Y0 Z{z:.3} F3000\n"
+            ));
+            e += 1.0;
+            src.push_str(&format!("G1 X{} Y0 E{e:.3}\n", x + 10.0));
+        };
+        for k in 1..=6 {
+            let z = 0.1 * k as f64;
+            if k % 3 == 0 {
+                layer(&mut src, 0.0, z, 0.3);
+            }
+            layer(&mut src, 50.0, z, 0.1);
+        }
+        let (layers, facts) = read(&src, false);
+        assert_eq!(facts.layer_source, LayerSource::Markers);
+        let l = layers_only(&layers);
+        let zs: Vec<(f64, f64)> = l.iter().map(|l| (l.z, l.height)).collect();
+        assert_eq!(l.len(), 8, "{zs:?}");
+        // The 0.3 mm object's second layer (Z 0.6) rests on the thin object's layers at 0.4
+        // and 0.5 and on its own at 0.3 (and the thin one's there), not on its sibling at 0.6.
+        let thick = l.iter().rfind(|l| (l.height - 0.3).abs() < 1e-9).unwrap();
+        assert!((thick.z - 0.6).abs() < 1e-9, "{zs:?}");
+        let tops: Vec<f64> = thick.rests_on.iter().map(|&i| l[i].z).collect();
+        assert_eq!(tops.len(), 4, "{tops:?}");
+        assert!(tops.iter().all(|&t| t > 0.29 && t < 0.51), "{tops:?}");
+        // The thin object's layer at 0.6 skips its sibling and rests on the layer at 0.5.
+        let thin = l.last().unwrap();
+        assert!((thin.height - 0.1).abs() < 1e-9 && thin.rests_on.len() == 1);
+        assert!((l[thin.rests_on[0]].z - 0.5).abs() < 1e-9);
+    }
+
+    #[test]
+    fn a_layer_height_tag_that_is_the_step_gives_way_to_the_beads_height() {
+        // PrusaSlicer, objects at 0.2 and 0.15 mm: `;HEIGHT:` at the layer change is the step
+        // from the layer before (0.05), each extrusion then states its own.
+        let src = ";LAYER_CHANGE\n;Z:0.2\n;HEIGHT:0.2\nG1 Z0.2\nG1 X0 Y0\nG1 X10 E1\n\
+                   ;LAYER_CHANGE\n;Z:0.35\n;HEIGHT:0.15\nG1 Z0.35\nG1 X50 Y0\nG1 X60 E2\n\
+                   ;LAYER_CHANGE\n;Z:0.4\n;HEIGHT:0.05\nG1 Z0.4\n;HEIGHT:0.2\nG1 X0 Y0\nG1 X10 E3\n";
+        let (layers, _) = read(src, false);
+        let l = layers_only(&layers);
+        assert_eq!(l.len(), 3);
+        assert!((l[2].height - 0.2).abs() < 1e-9, "{}", l[2].height);
+        assert_eq!(l[2].rests_on, vec![1, 0]);
+        assert!(!l[2].on_previous() && l[1].on_previous());
     }
 }

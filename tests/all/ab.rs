@@ -81,7 +81,7 @@ fn ab_plate_prints_the_original_unchanged_and_a_supported_copy() {
         if !same_points(&b_part, &c, d) {
             rewritten.push(i);
             let below = only(&after[i - 1], Some(copy));
-            let r = check_layer(Some(&below), &c, fa, &opts, false);
+            let r = check_layer(&[&below], &c, fa, &opts, false);
             let ok = (r.supported_mm + r.bridged_mm) / r.length_mm;
             // As good as the part rewritten on its own (the slicer's own infill ends leave a
             // couple of mm in air next to the region there too).
@@ -99,7 +99,7 @@ fn ab_plate_prints_the_original_unchanged_and_a_supported_copy() {
                 .iter()
                 .filter(|l| l.kind == LayerKind::Layer)
                 .collect();
-            let s = check_layer(Some(alone[i - 1]), alone[i], fa, &opts, false);
+            let s = check_layer(&[alone[i - 1]], alone[i], fa, &opts, false);
             assert!(ok >= 0.99, "copy layer {}: {r:?}", i + 1);
             assert!(
                 r.in_air_mm <= s.in_air_mm + 1e-6,
@@ -109,7 +109,7 @@ fn ab_plate_prints_the_original_unchanged_and_a_supported_copy() {
             assert!(r.in_air_mm <= 1.0 + s.in_air_mm);
             // The original's same layer still prints over air, as sliced.
             let orig_r = check_layer(
-                Some(&only(&after[i - 1], Some(orig))),
+                &[&only(&after[i - 1], Some(orig))],
                 &only(a, Some(orig)),
                 fa,
                 &opts,

@@ -39,7 +39,7 @@ fn rewrite_and_check(data: &[u8], what: &str) -> usize {
         if mine.is_empty() {
             continue;
         }
-        let c = check_layer(Some(below), layer, fa, &opts, true);
+        let c = check_layer(&[below], layer, fa, &opts, true);
         let bad: Vec<_> = c
             .samples
             .iter()

@@ -294,3 +294,74 @@ fn sequential_printing_starts_each_copy_on_the_bed() {
         before.in_air_mm
     );
 }
+
+#[test]
+fn objects_of_different_layer_heights_interleave_and_each_rests_on_its_own_layer() {
+    // Two parts sliced at 0.2 and 0.15 mm (PrusaSlicer's per-object layer height): their
+    // layers interleave in the file (0.35 mm of one, 0.4 of the other, ...), so the layer
+    // before a layer is mostly the other part's. Each layer must be judged against what lies
+    // under it: only the two real overhangs are found, and their loops are laid at their own
+    // part's layer height.
+    if !have_prusaslicer() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let amf = dir.path().join("two.amf");
+    write_amf(
+        &[
+            (&part("rect_overhang"), [60.0, 40.0], Some(0.2)),
+            (&part("tri_overhang"), [60.0, 120.0], Some(0.15)),
+        ],
+        &amf,
+    );
+    let Some(data) = slice_stl(&amf, &[]) else {
+        return;
+    };
+    let layers = all_layers(&data);
+    let interleaved = layers.iter().filter(|l| l.rests_on.len() >= 2).count();
+    assert!(interleaved > 20, "the parts' layers do not interleave");
+    let (new, rep) = rewrite(&data, BridgeMode::Keep);
+    // The rectangle's overhang starts at Z 10 (first layer 10.2), the triangle's too
+    // (10.1 or 10.05 in 0.15 mm layers over a 0.2 mm first layer).
+    assert_eq!(rep.regions_found, 2, "{:?}", rep.skipped);
+    assert_eq!(rep.regions_rewritten, 2);
+    for r in &rep.rewrites {
+        assert!(r.z > 10.0 && r.z < 10.25 && r.loops > 10, "{r:?}");
+    }
+    let (before, after) = (check(&data), check(&new));
+    println!(
+        "two layer heights: in air {:.1} -> {:.1} mm",
+        before.in_air_mm, after.in_air_mm
+    );
+    assert!(
+        after.in_air_mm < 0.02 * before.in_air_mm,
+        "{} {}",
+        after.in_air_mm,
+        before.in_air_mm
+    );
+    for (b, a) in before.layers.iter().zip(&after.layers) {
+        assert!(a.in_air_mm <= b.in_air_mm + 0.5, "layer {}: {a:?}", a.layer);
+    }
+    // The loops' beads are as wide as planned at their part's layer height (E made for the
+    // 0.15 mm part at 0.15 mm, not at the layer's 0.2).
+    let fa = printonair::layers::filament_area(1.75);
+    let blocks = poa_blocks(&new);
+    let in_block = |line: u64| blocks.iter().any(|&(a, b)| a <= line && line <= b);
+    let mut loops = 0;
+    for l in all_layers(&new) {
+        for p in &l.paths {
+            if p.length() > 5.0 && p.seg_line.first().is_some_and(|&n| in_block(n)) {
+                loops += 1;
+                let w = p.e_width(fa);
+                assert!(
+                    (w - 0.45).abs() < 0.06,
+                    "layer {} z {}: bead {w:.3} mm at {}",
+                    l.index + 1,
+                    l.z,
+                    p.height
+                );
+            }
+        }
+    }
+    assert!(loops > 20, "{loops} loops read back");
+}

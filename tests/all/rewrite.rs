@@ -65,7 +65,7 @@ fn check_specimen(name: &str, suffix: &str) {
 
     // Every strand poa wrote rests on material deposited before it.
     let opts = CheckOptions::default();
-    let c = check_layer(Some(below), layer, fa, &opts, true);
+    let c = check_layer(&[below], layer, fa, &opts, true);
     let poa_samples: Vec<_> = c
         .samples
         .iter()
@@ -129,7 +129,7 @@ fn check_specimen(name: &str, suffix: &str) {
         "{what}: {} mm in air near the region",
         in_air_near(&c)
     );
-    let orig_check = check_layer(Some(orig_below), orig_layer, fa, &opts, true);
+    let orig_check = check_layer(&[orig_below], orig_layer, fa, &opts, true);
     let orig_elsewhere: f64 = orig_check
         .samples
         .iter()
@@ -291,7 +291,7 @@ fn cura_slic3r_and_comment_less_files() {
             .position(|l| l.first_line <= blocks[0].0 && blocks[0].1 <= l.last_line)
             .unwrap();
         let c = check_layer(
-            Some(&after[i - 1]),
+            &[&after[i - 1]],
             &after[i],
             fa,
             &CheckOptions::default(),

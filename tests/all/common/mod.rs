@@ -279,6 +279,56 @@ impl Mesh {
     }
 }
 
+/// Several parts (ASCII STL files) as the objects of one AMF file, each moved by its offset
+/// and sliced at its own layer height where one is given (PrusaSlicer reads AMF's
+/// `slic3r.layer_height` object metadata: per-object layer heights, as set in its GUI).
+pub fn write_amf(objects: &[(&Path, [f64; 2], Option<f64>)], out: &Path) {
+    let mut s = String::from(
+        "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<amf unit=\"millimeter\" version=\"1.1\">\n",
+    );
+    let mut instances = String::new();
+    for (k, (stl, offset, layer_height)) in objects.iter().enumerate() {
+        let text = std::fs::read_to_string(stl).unwrap();
+        let vertices: Vec<&str> = text
+            .lines()
+            .filter_map(|l| l.trim().strip_prefix("vertex "))
+            .collect();
+        s.push_str(&format!("<object id=\"{k}\">\n"));
+        if let Some(h) = layer_height {
+            s.push_str(&format!(
+                "<metadata type=\"slic3r.layer_height\">{h}</metadata>\n"
+            ));
+        }
+        s.push_str("<mesh><vertices>\n");
+        for v in &vertices {
+            let c: Vec<&str> = v.split_whitespace().collect();
+            s.push_str(&format!(
+                "<vertex><coordinates><x>{}</x><y>{}</y><z>{}</z></coordinates></vertex>\n",
+                c[0], c[1], c[2]
+            ));
+        }
+        s.push_str("</vertices><volume>\n");
+        for t in 0..vertices.len() / 3 {
+            s.push_str(&format!(
+                "<triangle><v1>{}</v1><v2>{}</v2><v3>{}</v3></triangle>\n",
+                3 * t,
+                3 * t + 1,
+                3 * t + 2
+            ));
+        }
+        s.push_str("</volume></mesh></object>\n");
+        instances.push_str(&format!(
+            "<instance objectid=\"{k}\"><deltax>{}</deltax><deltay>{}</deltay><rz>0</rz></instance>",
+            offset[0], offset[1]
+        ));
+    }
+    s.push_str(&format!(
+        "<constellation id=\"{}\">{instances}</constellation>\n</amf>\n",
+        objects.len()
+    ));
+    std::fs::write(out, s).unwrap();
+}
+
 /// Slices a mesh with PrusaSlicer's CLI and the samples' config plus `args`.
 pub fn slice_mesh(mesh: &Mesh, args: &[&str]) -> Option<Vec<u8>> {
     let dir = tempfile::tempdir().unwrap();
