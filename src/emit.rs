@@ -25,7 +25,7 @@ use serde::Serialize;
 
 use crate::error::Error;
 use crate::gcode::{parse_line, split_lines, strip_terminator};
-use crate::geometry::{clip_lines, RegionKind};
+use crate::geometry::{RegionKind, RingIndex};
 use crate::layers::{flow_width, Layer, Role, SlicerConfig};
 use crate::machine::{Action, Machine};
 use crate::pass::Pass;
@@ -183,6 +183,11 @@ pub fn rewrite_layer(
         .iter()
         .map(|r| geo::BoundingRect::bounding_rect(&r.plan.zone))
         .collect();
+    // Every extrusion near a zone is measured against it: its boundary in a grid.
+    let zone_index: Vec<RingIndex> = rewrites
+        .iter()
+        .map(|r| RingIndex::new(&r.plan.zone))
+        .collect();
     // The lines of external perimeters, where a gradual overhang's block goes.
     let mut perimeter_lines: Vec<u64> = layer
         .paths
@@ -270,7 +275,7 @@ pub fn rewrite_layer(
                                 && lo[1] <= b.max().y
                         })
                     })
-                    .map(|(i, r)| (i, inside_intervals(&pts, &r.plan.zone)))
+                    .map(|(i, _)| (i, inside_intervals(&pts, &zone_index[i])))
                     .filter(|(_, iv)| !iv.is_empty())
                     .collect();
                 if !hits.is_empty() || cut.is_some() {
@@ -770,31 +775,16 @@ fn merge_intervals(sorted: Vec<(f64, f64)>) -> Vec<(f64, f64)> {
 
 /// Parameter intervals (in units of cumulative length along `pts`) of the polyline inside
 /// `zone`, merged and sorted.
-fn inside_intervals(pts: &[[f64; 2]], zone: &MultiPolygon<f64>) -> Vec<(f64, f64)> {
+fn inside_intervals(pts: &[[f64; 2]], zone: &RingIndex) -> Vec<(f64, f64)> {
     let total = polyline_length(pts);
     if total <= 1e-9 {
         return Vec::new();
     }
-    // Most strands near a zone lie wholly inside or outside it: an edge test and a point test
-    // decide them without a boolean operation.
-    if let Some(inside) = wholly_inside(pts, zone) {
-        return if inside && total > 1e-4 {
-            vec![(0.0, total)]
-        } else {
-            Vec::new()
-        };
-    }
-    let pieces = clip_lines(&[pts.to_vec()], zone, true);
-    let mut iv: Vec<(f64, f64)> = pieces
-        .iter()
-        .filter(|p| polyline_length(p) > 1e-4)
-        .map(|p| {
-            let a = param(pts, p[0]);
-            let b = param(pts, p[p.len() - 1]);
-            (a.min(b), a.max(b))
-        })
+    let iv: Vec<(f64, f64)> = zone
+        .inside_intervals(pts)
+        .into_iter()
+        .filter(|(a, b)| b - a > 1e-4)
         .collect();
-    iv.sort_by(|a, b| a.0.total_cmp(&b.0));
     // Pieces kept outside the zone shorter than this are slivers of the zone's edge: a bead
     // too short to print (its E rounds to nothing) that costs a travel on each side.
     let sliver = MIN_SEGMENT * 5.0;
@@ -816,37 +806,6 @@ fn inside_intervals(pts: &[[f64; 2]], zone: &MultiPolygon<f64>) -> Vec<(f64, f64
         }
     }
     merged
-}
-
-/// Whether the polyline lies inside `zone` (`Some(true)`) or outside it (`Some(false)`) without
-/// crossing or touching its boundary; `None` when it meets the boundary.
-fn wholly_inside(pts: &[[f64; 2]], zone: &MultiPolygon<f64>) -> Option<bool> {
-    use geo::{Contains, Intersects};
-    let line = geo::LineString::from(pts.iter().map(|p| (p[0], p[1])).collect::<Vec<_>>());
-    let meets = zone.0.iter().any(|poly| {
-        poly.exterior().intersects(&line) || poly.interiors().iter().any(|r| r.intersects(&line))
-    });
-    if meets || pts.iter().flatten().any(|v| !v.is_finite()) {
-        return None;
-    }
-    let first = geo::Point::new(pts[0][0], pts[0][1]);
-    Some(zone.contains(&first))
-}
-
-/// Cumulative length along `pts` of the point nearest to `q`.
-fn param(pts: &[[f64; 2]], q: [f64; 2]) -> f64 {
-    let mut best = (f64::INFINITY, 0.0);
-    let mut acc = 0.0;
-    for w in pts.windows(2) {
-        let (t, p) = crate::geometry::nearest_on_segment(q, w[0], w[1]);
-        let d = (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2);
-        let len = polyline_length(w);
-        if d < best.0 {
-            best = (d, acc + t * len);
-        }
-        acc += len;
-    }
-    best.1
 }
 
 /// The point at cumulative length `s` along `pts`, and the index of the segment holding it.
@@ -1941,27 +1900,29 @@ mod tests {
     }
 
     #[test]
-    fn strands_clear_of_a_zone_edge_get_the_intervals_a_clip_gives() {
+    fn strands_get_the_intervals_a_clip_gives() {
+        use crate::geometry::clip_lines;
         use geo::polygon;
         // A 10 mm square zone with a 2 mm square hole.
         let zone = MultiPolygon::new(vec![polygon!(
             exterior: [(x: 0.0, y: 0.0), (x: 10.0, y: 0.0), (x: 10.0, y: 10.0), (x: 0.0, y: 10.0)],
             interiors: [[(x: 4.0, y: 4.0), (x: 6.0, y: 4.0), (x: 6.0, y: 6.0), (x: 4.0, y: 6.0)]],
         )]);
-        let cases: [(&[[f64; 2]], Option<bool>); 5] = [
-            (&[[1.0, 1.0], [3.0, 2.0]], Some(true)),
-            (&[[11.0, 1.0], [12.0, 9.0]], Some(false)),
-            (&[[4.5, 4.5], [5.5, 5.5]], Some(false)),
-            (&[[-1.0, 5.0], [11.0, 5.0]], None),
-            (&[[1.0, 0.0], [9.0, 0.0]], None),
+        let index = RingIndex::new(&zone);
+        let cases: [&[[f64; 2]]; 6] = [
+            &[[1.0, 1.0], [3.0, 2.0]],
+            &[[11.0, 1.0], [12.0, 9.0]],
+            &[[4.5, 4.5], [5.5, 5.5]],
+            &[[-1.0, 5.0], [11.0, 5.0]],
+            &[[-1.0, 1.0], [5.0, 1.0], [5.0, 12.0]],
+            &[[2.0, 2.0], [8.0, 8.0]],
         ];
-        for (pts, expected) in cases {
-            assert_eq!(wholly_inside(pts, &zone), expected, "{pts:?}");
+        for pts in cases {
             let by_clip: f64 = clip_lines(&[pts.to_vec()], &zone, true)
                 .iter()
                 .map(|p| polyline_length(p))
                 .sum();
-            let by_intervals: f64 = inside_intervals(pts, &zone)
+            let by_intervals: f64 = inside_intervals(pts, &index)
                 .iter()
                 .map(|(a, b)| b - a)
                 .sum();
@@ -1971,7 +1932,7 @@ mod tests {
             );
         }
         // Crossing the whole square through the hole: 4 + 4 mm inside.
-        let iv = inside_intervals(&[[-1.0, 5.0], [11.0, 5.0]], &zone);
+        let iv = inside_intervals(&[[-1.0, 5.0], [11.0, 5.0]], &index);
         assert_eq!(iv.len(), 2, "{iv:?}");
         assert!(
             (iv[0].0 - 1.0).abs() < 1e-6 && (iv[1].1 - 11.0).abs() < 1e-6,

@@ -14,10 +14,12 @@ pub mod area;
 pub mod detect;
 pub mod proof;
 pub mod regions;
+pub mod ring_index;
 
 pub use area::{footprint, printed_area, rewritten_area, AreaOptions};
 pub use detect::{detect, read_ahead, Detected};
 pub use regions::{find_regions, DetectOptions, Region, RegionKind, RoleExtrusion, Tolerance};
+pub use ring_index::RingIndex;
 
 use geo::{MultiPolygon, Polygon};
 use geo_clipper::{Clipper, EndType, JoinType};

@@ -1,0 +1,248 @@
+//! A polygon set's boundary in a grid, for many point and polyline queries against one set.
+//!
+//! Input: a [`MultiPolygon`] (exteriors and holes, even-odd). Output: [`RingIndex`], which
+//! tells whether a point lies inside the set and which stretches of a polyline do, exactly
+//! (float intersections of the polyline's segments with the boundary segments), in time
+//! proportional to the boundary segments near the query instead of all of them.
+//! Invariants: the answers do not depend on the grid (it only narrows the segments tested);
+//! memory is bounded by the cell cap whatever the set's extent.
+
+use geo::MultiPolygon;
+
+/// Most cells the grid holds: a set spanning a whole bed in fine cells gets bigger cells.
+const MAX_CELLS: usize = 1 << 16;
+
+/// The boundary segments of a polygon set, bucketed by grid cell.
+#[derive(Debug, Default)]
+pub struct RingIndex {
+    segs: Vec<([f64; 2], [f64; 2])>,
+    origin: [f64; 2],
+    cell: f64,
+    nx: usize,
+    ny: usize,
+    /// Cell `i` holds `items[start[i]..start[i + 1]]`.
+    start: Vec<u32>,
+    items: Vec<u32>,
+}
+
+impl RingIndex {
+    pub fn new(set: &MultiPolygon<f64>) -> RingIndex {
+        let mut segs = Vec::new();
+        for poly in &set.0 {
+            for ring in std::iter::once(poly.exterior()).chain(poly.interiors()) {
+                for w in ring.0.windows(2) {
+                    let (a, b) = ([w[0].x, w[0].y], [w[1].x, w[1].y]);
+                    if a != b && a.iter().chain(&b).all(|v| v.is_finite()) {
+                        segs.push((a, b));
+                    }
+                }
+            }
+        }
+        if segs.is_empty() {
+            return RingIndex::default();
+        }
+        let mut lo = [f64::INFINITY; 2];
+        let mut hi = [f64::NEG_INFINITY; 2];
+        for (a, b) in &segs {
+            for p in [a, b] {
+                lo = [lo[0].min(p[0]), lo[1].min(p[1])];
+                hi = [hi[0].max(p[0]), hi[1].max(p[1])];
+            }
+        }
+        let (w, h) = ((hi[0] - lo[0]).max(1e-9), (hi[1] - lo[1]).max(1e-9));
+        // About one segment per cell, within the cap.
+        let cells = segs.len().clamp(1, MAX_CELLS) as f64;
+        let cell = ((w * h / cells).sqrt()).max(w.max(h) / MAX_CELLS as f64 * 4.0);
+        let nx = ((w / cell) as usize + 1).min(MAX_CELLS);
+        let ny = ((h / cell) as usize + 1).min(MAX_CELLS / nx.max(1)).max(1);
+        let cell = cell.max(w / nx as f64).max(h / ny as f64) * (1.0 + 1e-9);
+        let mut index = RingIndex {
+            segs,
+            origin: lo,
+            cell,
+            nx,
+            ny,
+            start: vec![0; nx * ny + 1],
+            items: Vec::new(),
+        };
+        let mut entries: Vec<(u32, u32)> = Vec::new();
+        for (i, &(a, b)) in index.segs.iter().enumerate() {
+            index.cells_of(a, b, |c| entries.push((c as u32, i as u32)));
+        }
+        for &(c, _) in &entries {
+            index.start[c as usize] += 1;
+        }
+        let mut acc = 0u32;
+        for v in index.start.iter_mut() {
+            acc += *v;
+            *v = acc;
+        }
+        index.items = vec![0; entries.len()];
+        for &(c, i) in entries.iter().rev() {
+            let at = &mut index.start[c as usize];
+            *at -= 1;
+            index.items[*at as usize] = i;
+        }
+        index
+    }
+
+    fn col(&self, x: f64) -> usize {
+        (((x - self.origin[0]) / self.cell) as usize).min(self.nx - 1)
+    }
+
+    fn row(&self, y: f64) -> usize {
+        (((y - self.origin[1]) / self.cell) as usize).min(self.ny - 1)
+    }
+
+    /// Calls `f` with every cell the segment's box covers (a segment is short next to the
+    /// set, so its box is few cells).
+    fn cells_of(&self, a: [f64; 2], b: [f64; 2], mut f: impl FnMut(usize)) {
+        let (x0, x1) = (self.col(a[0].min(b[0])), self.col(a[0].max(b[0])));
+        let (y0, y1) = (self.row(a[1].min(b[1])), self.row(a[1].max(b[1])));
+        for iy in y0..=y1 {
+            for ix in x0..=x1 {
+                f(iy * self.nx + ix);
+            }
+        }
+    }
+
+    fn cell_items(&self, c: usize) -> &[u32] {
+        &self.items[self.start[c] as usize..self.start[c + 1] as usize]
+    }
+
+    /// Whether `q` lies inside the set (even-odd rule; a point on the boundary may go
+    /// either way).
+    pub fn contains(&self, q: [f64; 2]) -> bool {
+        if self.segs.is_empty() || !(q[0].is_finite() && q[1].is_finite()) {
+            return false;
+        }
+        let (lo_y, hi_y) = (self.origin[1], self.origin[1] + self.cell * self.ny as f64);
+        if q[1] < lo_y || q[1] > hi_y || q[0] > self.origin[0] + self.cell * self.nx as f64 {
+            return false;
+        }
+        // A ray to +x: each segment crossing it counts once, in the cell where it crosses.
+        let iy = self.row(q[1]);
+        let mut inside = false;
+        for ix in self.col(q[0])..self.nx {
+            let c = iy * self.nx + ix;
+            for &i in self.cell_items(c) {
+                let (a, b) = self.segs[i as usize];
+                if (a[1] > q[1]) != (b[1] > q[1]) {
+                    let x = a[0] + (q[1] - a[1]) / (b[1] - a[1]) * (b[0] - a[0]);
+                    if x > q[0] && self.col(x) == ix {
+                        inside = !inside;
+                    }
+                }
+            }
+        }
+        inside
+    }
+
+    /// The stretches of the polyline `pts` inside the set, as (from, to) distances along it,
+    /// in order and apart. Each segment is cut where it crosses the boundary and each piece
+    /// judged by its middle point.
+    pub fn inside_intervals(&self, pts: &[[f64; 2]]) -> Vec<(f64, f64)> {
+        let mut out: Vec<(f64, f64)> = Vec::new();
+        let mut along = 0.0;
+        let mut cuts: Vec<f64> = Vec::new();
+        for w in pts.windows(2) {
+            let (a, b) = (w[0], w[1]);
+            let len = ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2)).sqrt();
+            if len <= 0.0 || !len.is_finite() {
+                continue;
+            }
+            cuts.clear();
+            cuts.push(0.0);
+            if !self.segs.is_empty() {
+                let mut seen: Vec<u32> = Vec::new();
+                self.cells_of(a, b, |c| {
+                    for &i in self.cell_items(c) {
+                        if seen.contains(&i) {
+                            continue;
+                        }
+                        seen.push(i);
+                        let (p, q) = self.segs[i as usize];
+                        if let Some(t) = crossing(a, b, p, q) {
+                            cuts.push(t);
+                        }
+                    }
+                });
+            }
+            cuts.push(1.0);
+            cuts.sort_by(f64::total_cmp);
+            for k in 0..cuts.len() - 1 {
+                let (t0, t1) = (cuts[k], cuts[k + 1]);
+                if t1 - t0 <= 0.0 {
+                    continue;
+                }
+                let tm = (t0 + t1) / 2.0;
+                let mid = [a[0] + tm * (b[0] - a[0]), a[1] + tm * (b[1] - a[1])];
+                if self.contains(mid) {
+                    let (s0, s1) = (along + t0 * len, along + t1 * len);
+                    match out.last_mut() {
+                        Some(last) if (s0 - last.1).abs() <= 1e-12 => last.1 = s1,
+                        _ => out.push((s0, s1)),
+                    }
+                }
+            }
+            along += len;
+        }
+        out
+    }
+}
+
+/// Where on `a`-`b` (parameter in 0..=1) the segment `p`-`q` meets it, if it does at one
+/// point (parallel segments give none: the pieces around them are judged by their middles).
+fn crossing(a: [f64; 2], b: [f64; 2], p: [f64; 2], q: [f64; 2]) -> Option<f64> {
+    let r = [b[0] - a[0], b[1] - a[1]];
+    let s = [q[0] - p[0], q[1] - p[1]];
+    let denom = r[0] * s[1] - r[1] * s[0];
+    if denom.abs() <= 1e-15 * (r[0].hypot(r[1]) * s[0].hypot(s[1])).max(1e-300) {
+        return None;
+    }
+    let d = [p[0] - a[0], p[1] - a[1]];
+    let t = (d[0] * s[1] - d[1] * s[0]) / denom;
+    let u = (d[0] * r[1] - d[1] * r[0]) / denom;
+    ((0.0..=1.0).contains(&t) && (0.0..=1.0).contains(&u)).then_some(t)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::testutil::{mp, rect};
+
+    #[test]
+    fn points_and_stretches_inside_a_square_with_a_hole() {
+        let mut outer = rect(0.0, 0.0, 10.0, 10.0);
+        outer.interiors_push(vec![
+            (4.0, 4.0),
+            (6.0, 4.0),
+            (6.0, 6.0),
+            (4.0, 6.0),
+            (4.0, 4.0),
+        ]);
+        let set = mp(vec![outer]);
+        let idx = RingIndex::new(&set);
+        assert!(idx.contains([1.0, 1.0]));
+        assert!(!idx.contains([5.0, 5.0]));
+        assert!(!idx.contains([11.0, 5.0]));
+        assert!(!idx.contains([-1.0, 5.0]));
+        let iv = idx.inside_intervals(&[[-1.0, 5.0], [11.0, 5.0]]);
+        let want = [(1.0, 5.0), (7.0, 11.0)];
+        assert_eq!(iv.len(), 2, "{iv:?}");
+        for (g, w) in iv.iter().zip(want) {
+            assert!(
+                (g.0 - w.0).abs() < 1e-9 && (g.1 - w.1).abs() < 1e-9,
+                "{iv:?}"
+            );
+        }
+        // A polyline turning inside keeps one stretch across its corner.
+        let iv = idx.inside_intervals(&[[1.0, 1.0], [3.0, 1.0], [3.0, 3.0]]);
+        assert_eq!(iv.len(), 1);
+        assert!((iv[0].1 - 4.0).abs() < 1e-9);
+        // Through a vertex of the hole: the pieces are judged by their middles.
+        let iv = idx.inside_intervals(&[[2.0, 2.0], [8.0, 8.0]]);
+        let inside: f64 = iv.iter().map(|(a, b)| b - a).sum();
+        assert!((inside - 8f64.sqrt() * 2.0).abs() < 1e-9, "{iv:?}");
+    }
+}
