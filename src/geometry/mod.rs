@@ -222,6 +222,32 @@ pub fn grow_within(
     Simplify::simplify(&cut, FRONT_TOLERANCE / 2.0)
 }
 
+/// Grid buckets of (cell, item) entries over `cells` cells: `start` (cell `c` holds
+/// `items[start[c]..start[c + 1]]`) and `items`, each cell's items in entry order.
+///
+/// Counts, then each cell's end by a running sum, then each item placed by counting its
+/// cell's end down (in reverse, so that a cell keeps its items in order): the ends become the
+/// starts, with no second array. The sum runs in a register: the plain
+/// `start[i + 1] += start[i]` was most of the time on a plate's grid.
+pub(crate) fn buckets(cells: usize, entries: &[(u32, u32)]) -> (Vec<u32>, Vec<u32>) {
+    let mut start = vec![0u32; cells + 1];
+    for &(c, _) in entries {
+        start[c as usize] += 1;
+    }
+    let mut acc = 0u32;
+    for v in start.iter_mut() {
+        acc += *v;
+        *v = acc;
+    }
+    let mut items = vec![0; entries.len()];
+    for &(c, i) in entries.iter().rev() {
+        let at = &mut start[c as usize];
+        *at -= 1;
+        items[*at as usize] = i;
+    }
+    (start, items)
+}
+
 /// Morphological opening: removes every part narrower than `2 r`, keeps the rest's shape
 /// (up to rounding of convex corners by `r`).
 pub fn opening(mp: &MultiPolygon<f64>, r: f64) -> MultiPolygon<f64> {

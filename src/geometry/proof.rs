@@ -126,7 +126,7 @@ impl Grid {
             cell,
             nx,
             ny,
-            start: vec![0; nx * ny + 1],
+            start: Vec::new(),
             items: Vec::new(),
         };
         // Two passes over the pieces: count per cell, then fill.
@@ -151,24 +151,7 @@ impl Grid {
                 prev = (x0, x1, y0, y1);
             }
         }
-        // Counts, then each cell's end by a running sum, then each item placed by counting
-        // its cell's end down (in reverse, so that a cell keeps its items in order): the
-        // ends become the starts, with no second array. The sum runs in a register: the
-        // plain `start[i + 1] += start[i]` was most of the time on a plate's grid.
-        for &(c, _) in &cells {
-            grid.start[c as usize] += 1;
-        }
-        let mut acc = 0u32;
-        for v in grid.start.iter_mut() {
-            acc += *v;
-            *v = acc;
-        }
-        grid.items = vec![0; cells.len()];
-        for &(c, i) in cells.iter().rev() {
-            let at = &mut grid.start[c as usize];
-            *at -= 1;
-            grid.items[*at as usize] = i;
-        }
+        (grid.start, grid.items) = super::buckets(nx * ny, &cells);
         grid
     }
 

@@ -62,27 +62,14 @@ impl RingIndex {
             cell,
             nx,
             ny,
-            start: vec![0; nx * ny + 1],
+            start: Vec::new(),
             items: Vec::new(),
         };
         let mut entries: Vec<(u32, u32)> = Vec::new();
         for (i, &(a, b)) in index.segs.iter().enumerate() {
             index.cells_of(a, b, |c| entries.push((c as u32, i as u32)));
         }
-        for &(c, _) in &entries {
-            index.start[c as usize] += 1;
-        }
-        let mut acc = 0u32;
-        for v in index.start.iter_mut() {
-            acc += *v;
-            *v = acc;
-        }
-        index.items = vec![0; entries.len()];
-        for &(c, i) in entries.iter().rev() {
-            let at = &mut index.start[c as usize];
-            *at -= 1;
-            index.items[*at as usize] = i;
-        }
+        (index.start, index.items) = super::buckets(nx * ny, &entries);
         index
     }
 
