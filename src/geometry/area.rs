@@ -314,6 +314,9 @@ pub fn area_from_footprint(
 ) -> MultiPolygon<f64> {
     match outline(layer) {
         Outline::Walls => {
+            if layer.paths.iter().any(|p| is_support(p.role)) {
+                return with_support(layer, opts);
+            }
             let walls: Vec<&Path> = layer
                 .paths
                 .iter()
@@ -351,6 +354,36 @@ pub fn area_from_footprint(
         }
         Outline::Bare => close_holes(fp, |hole| hole_width_below(hole, opts.gap_close)),
     }
+}
+
+fn is_support(role: Role) -> bool {
+    matches!(role, Role::Support | Role::SupportInterface)
+}
+
+/// The printed area of a layer with walls and support material: the part's (holes closed by
+/// the walls' rule) and the support's (closed like a layer without roles: gaps between
+/// support lines narrower than [`AreaOptions::gap_close`]), each on its own. Taken together,
+/// a part standing in the support would close the support's gaps next to it into holes
+/// holding the part's infill, and the layer would claim rows of air that the same support
+/// alone (on a layer of its own height) leaves open.
+fn with_support(layer: &Layer, opts: &AreaOptions) -> MultiPolygon<f64> {
+    let part = Layer {
+        paths: layer
+            .paths
+            .iter()
+            .filter(|p| !is_support(p.role))
+            .cloned()
+            .collect(),
+        raw: Vec::new(),
+        start: None,
+        objects: None,
+        rests_on: Vec::new(),
+        ..*layer
+    };
+    let part_area = printed_area(&part, opts);
+    let support = Strands::of(layer.paths.iter().filter(|p| is_support(p.role))).buffer();
+    let support_area = close_holes(support, |hole| hole_width_below(hole, opts.gap_close));
+    BooleanOps::union(&part_area, &support_area)
 }
 
 /// Whether a path's first, middle and last points lie in `area`.

@@ -183,7 +183,36 @@ pub fn find_regions(
     let boxes: Vec<Option<Rect<f64>>> = layer.paths.iter().map(path_box).collect();
     kept.into_iter()
         .map(|polygon| describe(polygon, below, &anchor_zone, layer, &boxes, opts))
+        // Support material over air is the slicer's business: support lines stacked over the
+        // gaps of the support below, or its first layers hanging under a part's ledge. Only
+        // the part is rewritten (a region of support alone would get loops over it and
+        // nothing taken out).
+        .filter(|r| !support_only(r, layer, &boxes))
         .collect()
+}
+
+/// Whether support material is all that prints a region: all the strands inside it, or,
+/// when none runs inside (a gap between support lines that the printed area closes), all
+/// those within a bead's width of it.
+fn support_only(r: &Region, layer: &Layer, boxes: &[Option<Rect<f64>>]) -> bool {
+    let support = [Role::Support.name(), Role::SupportInterface.name()];
+    let only = |e: &[RoleExtrusion]| !e.is_empty() && e.iter().all(|e| support.contains(&e.role));
+    if !r.extrusions.is_empty() {
+        return only(&r.extrusions);
+    }
+    let reach = layer
+        .paths
+        .iter()
+        .map(|p| p.width)
+        .fold(0.0, f64::max)
+        .min(2.0);
+    let grown = super::offset(&MultiPolygon::new(vec![r.polygon.clone()]), reach);
+    let near: Vec<RoleExtrusion> = grown
+        .0
+        .iter()
+        .flat_map(|p| extrusions_inside(p, layer, boxes).0)
+        .collect();
+    only(&near)
 }
 
 /// `here - cover`, part by part: each polygon of `here` (they are disjoint) minus the polygons

@@ -365,3 +365,43 @@ fn objects_of_different_layer_heights_interleave_and_each_rests_on_its_own_layer
     }
     assert!(loops > 20, "{loops} loops read back");
 }
+
+#[test]
+fn support_material_is_left_to_the_slicer() {
+    // PrusaSlicer's support is sliced at its own layer heights (0.25 mm beside 0.2 mm part
+    // layers) and its lines stand beside the stem. Nothing of it is a region: with the part
+    // resting on the interface (contact distance 0) nothing is rewritten at all; with the
+    // default gap only the cap's first layer is (loops over the interface, as over air), and
+    // no layer gets more in air.
+    for (args, regions) in [
+        (
+            &[
+                "--support-material",
+                "--support-material-auto",
+                "--support-material-contact-distance",
+                "0",
+            ][..],
+            0,
+        ),
+        (&["--support-material", "--support-material-auto"][..], 1),
+    ] {
+        let Some(data) = slice("mushroom", args) else {
+            return;
+        };
+        let (new, rep) = rewrite(&data, BridgeMode::Keep);
+        assert_eq!(rep.regions_found, regions, "{args:?}: {:?}", rep.rewrites);
+        for r in &rep.rewrites {
+            assert!(r.z > 9.9 && r.z < 10.5, "{args:?}: {r:?}");
+        }
+        let (before, after) = (check(&data), check(&new));
+        for (b, a) in before.layers.iter().zip(&after.layers) {
+            assert!(
+                a.in_air_mm <= b.in_air_mm + 0.05,
+                "{args:?} layer {}: {} -> {}",
+                a.layer,
+                b.in_air_mm,
+                a.in_air_mm
+            );
+        }
+    }
+}
