@@ -70,6 +70,11 @@ impl SlicerConfig {
                     "estimated_printing_time".to_string(),
                     format!("{}s", v.trim()),
                 );
+            } else if let Some(v) = rest.strip_prefix("FLAVOR:") {
+                // Cura's header: `;FLAVOR:UltiGCode`.
+                self.values
+                    .entry("gcode_flavor".to_string())
+                    .or_insert_with(|| v.trim().to_string());
             } else if let Some(v) = rest.strip_prefix("Layer height:") {
                 self.values
                     .insert("layer_height".to_string(), v.trim().to_string());
@@ -161,8 +166,33 @@ impl SlicerConfig {
         self.bool("use_relative_e_distances")
     }
 
+    /// Retraction in E units: the file's length of filament, as a volume where E is one.
     pub fn retract_length(&self) -> f64 {
-        self.number("retract_length").unwrap_or(0.8).max(0.0)
+        let mm = self.number("retract_length").unwrap_or(0.8).max(0.0);
+        if self.volumetric_e() {
+            mm * crate::layers::filament_area(self.filament_diameter())
+        } else {
+            mm
+        }
+    }
+
+    /// Whether E counts cubic millimetres of material instead of millimetres of filament:
+    /// PrusaSlicer's `use_volumetric_e`, Cura's UltiGCode flavour.
+    pub fn volumetric_e(&self) -> bool {
+        self.bool("use_volumetric_e") == Some(true)
+            || self
+                .get("gcode_flavor")
+                .is_some_and(|f| f.eq_ignore_ascii_case("UltiGCode"))
+    }
+
+    /// Cross-section (mm2) that turns E into a volume of material: the filament's, or 1 where
+    /// E is a volume already.
+    pub fn e_area(&self) -> f64 {
+        if self.volumetric_e() {
+            1.0
+        } else {
+            crate::layers::filament_area(self.filament_diameter())
+        }
     }
 
     /// Filament density in g/cm3.
@@ -256,6 +286,21 @@ impl SlicerConfig {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn ultigcode_and_volumetric_e_count_e_as_a_volume() {
+        let cura = SlicerConfig::parse(b";FLAVOR:UltiGCode\n;TIME:6666\n");
+        assert!(cura.volumetric_e());
+        assert_eq!(cura.e_area(), 1.0);
+        // 0.8 mm of 1.75 mm filament is 1.92 mm3.
+        assert!((cura.retract_length() - 0.8 * 2.405).abs() < 0.01);
+        let prusa = SlicerConfig::parse(b"; use_volumetric_e = 1\n; retract_length = 1\n");
+        assert!(prusa.volumetric_e());
+        let plain = SlicerConfig::parse(b";FLAVOR:Marlin\n");
+        assert!(!plain.volumetric_e());
+        assert!((plain.e_area() - 2.405).abs() < 0.001);
+        assert_eq!(plain.retract_length(), 0.8);
+    }
+
     use super::*;
 
     #[test]

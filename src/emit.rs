@@ -52,7 +52,7 @@ impl Motion {
             .unwrap_or(25.0)
             .max(1.0);
         Motion {
-            filament_area: crate::layers::filament_area(config.filament_diameter()),
+            filament_area: config.e_area(),
             travel: TravelStyle::from_config(config),
             loop_speed: MmPerS(loop_speed),
             perimeter_speed: MmPerS(settings.perimeter_speed.unwrap_or(loop_speed).max(1.0)),

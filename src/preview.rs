@@ -727,7 +727,7 @@ pub fn check_layer_svg<R: BufRead>(
     number: usize,
     title: &str,
 ) -> io::Result<Option<String>> {
-    let fa = crate::layers::filament_area(config.filament_diameter());
+    let fa = config.e_area();
     let reader = LayerReader::new(
         input,
         ReaderOptions {
@@ -811,10 +811,7 @@ pub fn compare_page<A: BufRead, B: BufRead>(
     names: [&str; 2],
     opts: &crate::check::CheckOptions,
 ) -> io::Result<String> {
-    let fa = [
-        crate::layers::filament_area(original_config.filament_diameter()),
-        crate::layers::filament_area(file_config.filament_diameter()),
-    ];
+    let fa = [original_config.e_area(), file_config.e_area()];
     let mut a = print_layers(original, original_config);
     let mut b = print_layers(file, file_config);
     let mut recent: [VecDeque<Layer>; 2] = [VecDeque::new(), VecDeque::new()];

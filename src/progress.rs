@@ -296,7 +296,7 @@ pub fn refresh(
         &fixed[footer..],
         filament_out - filament_in,
         time_out - time_in,
-        crate::layers::filament_area(config.filament_diameter()),
+        config.e_area(),
         config.filament_density(),
     );
     fixed.truncate(footer);

@@ -79,6 +79,8 @@ pub fn stated_time(config: &SlicerConfig) -> Option<f64> {
 /// Reads a whole file through the pipeline and summarises it.
 pub fn info<R: BufRead>(input: R, config: SlicerConfig, file: &str) -> std::io::Result<InfoReport> {
     let diameter = config.filament_diameter();
+    // Filament per unit of E: 1, or per mm3 where E is a volume (UltiGCode).
+    let per_e = config.e_area() / filament_area(diameter);
     let density = config.filament_density();
     let relative_cfg = config.relative_e();
     let limits = crate::estimate::Limits::from_config(&config);
@@ -104,7 +106,7 @@ pub fn info<R: BufRead>(input: R, config: SlicerConfig, file: &str) -> std::io::
             last_z = Some(layer.z);
         }
         for p in &layer.paths {
-            let e = p.e();
+            let e = p.e() * per_e;
             all += e;
             if is_layer {
                 in_layers += e;
@@ -594,7 +596,7 @@ pub fn check<R: BufRead + Send>(
     opts: &CheckOptions,
     file: &str,
 ) -> std::io::Result<CheckReport> {
-    let fa = filament_area(config.filament_diameter());
+    let fa = config.e_area();
     let limits = crate::estimate::Limits::from_config(&config);
     let mut reader = LayerReader::new(
         input,

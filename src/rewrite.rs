@@ -305,7 +305,7 @@ pub fn ab_plate(
     let mut text = Vec::with_capacity(plate.text.len());
     progress::update(&plate.text[..], &mut text, &plate.added, totals).map_err(read_err)?;
     let footer = footer_start(&text);
-    let fa = crate::layers::filament_area(opened.config.filament_diameter());
+    let fa = opened.config.e_area();
     let tail = progress::update_footer(
         &text[footer..],
         plate.added_filament_mm,
@@ -494,7 +494,7 @@ pub fn texture_file(
             path: dir.to_path_buf(),
             source,
         })?;
-        let fa = crate::layers::filament_area(config.filament_diameter());
+        let fa = config.e_area();
         let title = format!(
             "poa texture: {}",
             file.file_name()

@@ -291,7 +291,7 @@ pub fn deform_text(
     force: bool,
 ) -> Result<Deformed, Error> {
     let helix = find(text)?;
-    let fa = crate::layers::filament_area(config.filament_diameter());
+    let fa = config.e_area();
     let mut map = deform::Deform::new(spec, &helix, fa)?;
     let mut mapped = Vec::with_capacity(text.len() + text.len() / 4);
     let stats = crate::movemap::apply(text, &mut map, &crate::writer::Cartesian, &mut mapped)?;

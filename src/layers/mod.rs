@@ -442,7 +442,7 @@ impl State {
             machine: machine.clone(),
             estimator: None,
             keep_raw: options.keep_raw,
-            filament_area: filament_area(cfg.filament_diameter()),
+            filament_area: cfg.e_area(),
             config_layer_height: cfg.layer_height(),
             markers_promised: producer
                 .as_ref()

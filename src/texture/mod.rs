@@ -797,7 +797,7 @@ pub fn texture_text(
             tile,
             piece_len,
             nozzle: config.nozzle_diameter(),
-            filament_area: crate::layers::filament_area(config.filament_diameter()),
+            filament_area: config.e_area(),
             max_flow,
             final_e,
             pieces: Vec::new(),

@@ -136,3 +136,40 @@ fn the_rewrite_leaves_nothing_in_air_on_the_first_floating_layer() {
         );
     }
 }
+
+#[test]
+fn ultigcode_counts_e_in_cubic_millimetres() {
+    // Cura's UltiGCode flavour (Ultimaker 2) writes E as a volume: the layer model, the check
+    // and the loops poa writes must all read and write it so.
+    let Some(data) = slice_cura(&part("rect_overhang"), "ultimaker2", &["layer_height=0.2"]) else {
+        return;
+    };
+    let config = SlicerConfig::parse(&data);
+    assert!(config.volumetric_e() && config.e_area() == 1.0);
+    let (out, rep) = rewrite(&data, BridgeMode::Keep);
+    assert_eq!(rep.regions_rewritten, 1, "{:?}", rep.skipped);
+    let blocks = poa_blocks(&out);
+    let in_block = |line: u64| blocks.iter().any(|&(a, b)| a <= line && line <= b);
+    let mut loops = 0;
+    for l in all_layers(&out) {
+        for p in &l.paths {
+            if p.length() > 5.0 && p.seg_line.first().is_some_and(|&n| in_block(n)) {
+                loops += 1;
+                // A 0.4 mm nozzle's loop: the bead as wide as planned, not 2.4 times thinner.
+                let w = p.e_width(1.0);
+                assert!(
+                    (0.3..0.6).contains(&w),
+                    "layer {}: bead {w:.3} mm",
+                    l.index + 1
+                );
+            }
+        }
+    }
+    assert!(loops > 20, "{loops} loops");
+    let check = |d: &[u8]| {
+        printonair::report::check(d, SlicerConfig::parse(d), &CheckOptions::default(), "x").unwrap()
+    };
+    let (before, after) = (check(&data), check(&out));
+    assert!(before.in_air_mm > 1000.0, "{}", before.in_air_mm);
+    assert!(after.in_air_mm < 2.0, "{}", after.in_air_mm);
+}
