@@ -432,7 +432,7 @@ impl Machine {
         } else {
             self.diagnostics.add("bad-number", line, || {
                 format!(
-                    "line {line}: {}{v} is not a usable number; the word was ignored",
+                    "{}{v} is not a usable number; the word was ignored",
                     letter as char
                 )
             });
@@ -463,9 +463,7 @@ impl Machine {
                 if !(x.is_finite() && x.abs() * self.unit <= MAX_COORD_MM) {
                     let letter = [b'X', b'Y', b'Z', b'E', b'F'][slot] as char;
                     self.diagnostics.add("bad-number", line, || {
-                        format!(
-                            "line {line}: {letter}{x} is not a usable number; the word was ignored"
-                        )
+                        format!("{letter}{x} is not a usable number; the word was ignored")
                     });
                     *v = None;
                 }
@@ -536,7 +534,7 @@ impl Machine {
         };
         let Some(center) = center else {
             self.diagnostics.add("bad-arc", line, || {
-                format!("line {line}: arc without a usable centre; treated as a straight move")
+                format!("arc without a usable centre; treated as a straight move")
             });
             return Action::Move(Move {
                 line,

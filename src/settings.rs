@@ -524,7 +524,7 @@ pub fn describe(eff: &Effective, config: &SlicerConfig) -> String {
             ),
             "min_width" => (
                 format!("{:.3} mm", detect.min_width()),
-                "auto: the external perimeter width",
+                "auto: a tenth of the external perimeter width",
             ),
             _ => return None,
         })

@@ -716,7 +716,7 @@ impl State {
             (LayerSource::Markers, Some(k)) if k != kind => return,
             (LayerSource::InferredFromZ, _) => {
                 self.diagnostics.add("late-marker", line, || {
-                    format!("line {line}: layer marker after layers were inferred from Z; ignored")
+                    format!("layer marker after layers were inferred from Z; ignored")
                 });
                 return;
             }
@@ -777,7 +777,7 @@ impl State {
         if spiral && !self.facts.spiral_vase {
             self.facts.spiral_vase = true;
             self.diagnostics.add("spiral", line, || {
-                format!("line {line}: Z rises while extruding: spiral vase (or a non-planar) print")
+                format!("Z rises while extruding: spiral vase (or a non-planar) print")
             });
         }
         if self.facts.layer_source != LayerSource::Markers {
