@@ -153,6 +153,9 @@ impl Layer {
     }
 }
 
+/// Tallest layer or bead height a comment may state (mm): beyond it the comment is ignored.
+const MAX_HEIGHT: f64 = 10.0;
+
 /// Earlier layers looked through for what a layer rests on.
 pub const RECENT_LAYERS: usize = 32;
 
@@ -193,7 +196,7 @@ pub fn bead_height<'a>(paths: impl IntoIterator<Item = &'a Path>) -> f64 {
     let mut by_height: Vec<(f64, f64)> = Vec::new();
     for p in paths
         .into_iter()
-        .filter(|p| p.height > 0.0 && p.height.is_finite())
+        .filter(|p| p.height > 0.0 && p.height <= MAX_HEIGHT)
     {
         let len = p.length();
         match by_height
@@ -578,7 +581,10 @@ impl State {
                 height,
             } => {
                 self.marker(kind, n, z, number);
-                if let Some(h) = height.filter(|_| self.marker_kind == Some(kind)) {
+                if let Some(h) = height
+                    .filter(|h| *h <= MAX_HEIGHT)
+                    .filter(|_| self.marker_kind == Some(kind))
+                {
                     self.cur.height_tag = Some(h);
                     self.height_tag = Some(h);
                 }
@@ -589,7 +595,7 @@ impl State {
                 }
             }
             Tag::Height(h) => {
-                if h > 0.0 {
+                if h > 0.0 && h <= MAX_HEIGHT {
                     if self.cur.kind == LayerKind::Layer && self.cur.height_tag.is_none() {
                         self.cur.height_tag = Some(h);
                     }
@@ -613,7 +619,7 @@ impl State {
                 if width > 0.0 && width < 50.0 {
                     self.width_tag = Some(width);
                 }
-                if height > 0.0 {
+                if height > 0.0 && height <= MAX_HEIGHT {
                     self.height_tag = Some(height);
                 }
             }
@@ -994,7 +1000,7 @@ impl State {
         let reach = paths
             .iter()
             .map(|p| p.height)
-            .filter(|h| h.is_finite() && *h < 10.0)
+            .filter(|h| *h <= MAX_HEIGHT)
             .fold(height, f64::max);
         for p in &mut paths {
             if p.height <= 0.0 {
@@ -1365,5 +1371,20 @@ M486 S3\nM486 Abox\nG1 X20 E1\nM486 S-1\n";
         assert!((l[2].height - 0.2).abs() < 1e-9, "{}", l[2].height);
         assert_eq!(l[2].rests_on, vec![1, 0]);
         assert!(!l[2].on_previous() && l[1].on_previous());
+    }
+
+    #[test]
+    fn height_comments_out_of_range_are_ignored() {
+        let src = ";LAYER_CHANGE\n;Z:0.2\n;HEIGHT:1e300\nG1 Z0.2\nG1 X0 Y0\nG1 X10 E1\n\
+                   ;LAYER_CHANGE\n;Z:0.4\n;HEIGHT:-5\nG1 Z0.4\nG1 X0 Y0 E2\n";
+        let (layers, _) = read(src, false);
+        let l = layers_only(&layers);
+        assert_eq!(l.len(), 2);
+        assert!(
+            l.iter().all(|l| l.height > 0.0 && l.height <= 0.4),
+            "{:?}",
+            l.iter().map(|l| l.height).collect::<Vec<_>>()
+        );
+        assert!(l.iter().flat_map(|l| &l.paths).all(|p| p.height <= 0.4));
     }
 }
