@@ -534,7 +534,7 @@ impl Machine {
         };
         let Some(center) = center else {
             self.diagnostics.add("bad-arc", line, || {
-                format!("arc without a usable centre; treated as a straight move")
+                "arc without a usable centre; treated as a straight move".to_string()
             });
             return Action::Move(Move {
                 line,

@@ -722,7 +722,7 @@ impl State {
             (LayerSource::Markers, Some(k)) if k != kind => return,
             (LayerSource::InferredFromZ, _) => {
                 self.diagnostics.add("late-marker", line, || {
-                    format!("layer marker after layers were inferred from Z; ignored")
+                    "layer marker after layers were inferred from Z; ignored".to_string()
                 });
                 return;
             }
@@ -783,7 +783,7 @@ impl State {
         if spiral && !self.facts.spiral_vase {
             self.facts.spiral_vase = true;
             self.diagnostics.add("spiral", line, || {
-                format!("Z rises while extruding: spiral vase (or a non-planar) print")
+                "Z rises while extruding: spiral vase (or a non-planar) print".to_string()
             });
         }
         if self.facts.layer_source != LayerSource::Markers {
