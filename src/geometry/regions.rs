@@ -161,12 +161,34 @@ pub fn find_regions(
         return Vec::new();
     }
     let tol = opts.tolerance_at(layer.height);
-    let grown = offset_parts(below, tol);
-    let raw = if grown.0.is_empty() {
-        here.clone()
+    let boxes: Vec<Option<Rect<f64>>> = layer.paths.iter().map(path_box).collect();
+    // Support material alone holds no region (see `support_only`): on a layer with support,
+    // only the islands where the part prints are searched, and the support's many lines are
+    // never grown and cut for nothing.
+    let searched;
+    let here = if layer.paths.iter().any(|p| !p.role.is_part()) {
+        let part: Vec<Rect<f64>> = layer
+            .paths
+            .iter()
+            .zip(&boxes)
+            .filter(|(p, _)| p.role.is_part())
+            .filter_map(|(_, b)| *b)
+            .collect();
+        searched = MultiPolygon::new(
+            here.0
+                .iter()
+                .filter(|q| {
+                    q.bounding_rect()
+                        .is_some_and(|b| part.iter().any(|pb| boxes_meet(&b, pb)))
+                })
+                .cloned()
+                .collect(),
+        );
+        &searched
     } else {
-        uncovered(here, &grown)
+        here
     };
+    let raw = uncovered(here, below, tol);
     if raw.unsigned_area() < opts.min_area {
         return Vec::new();
     }
@@ -179,10 +201,8 @@ pub fn find_regions(
     if kept.is_empty() {
         return Vec::new();
     }
-    let anchor_zone = offset_parts(below, tol + ANCHOR_SLACK);
-    let boxes: Vec<Option<Rect<f64>>> = layer.paths.iter().map(path_box).collect();
     kept.into_iter()
-        .map(|polygon| describe(polygon, below, &anchor_zone, layer, &boxes, opts))
+        .map(|polygon| describe(polygon, below, tol + ANCHOR_SLACK, layer, &boxes, opts))
         // Support material over air is the slicer's business: support lines stacked over the
         // gaps of the support below, or its first layers hanging under a part's ledge. Only
         // the part is rewritten (a region of support alone would get loops over it and
@@ -215,12 +235,22 @@ fn support_only(r: &Region, layer: &Layer, boxes: &[Option<Rect<f64>>]) -> bool 
     only(&near)
 }
 
-/// `here - cover`, part by part: each polygon of `here` (they are disjoint) minus the polygons
-/// of `cover` whose boxes meet its box. On a plate the booleans stay the size of one part, and
-/// the parts run on all cores.
-fn uncovered(here: &MultiPolygon<f64>, cover: &MultiPolygon<f64>) -> MultiPolygon<f64> {
+fn boxes_meet(a: &Rect<f64>, b: &Rect<f64>) -> bool {
+    a.min().x <= b.max().x
+        && b.min().x <= a.max().x
+        && a.min().y <= b.max().y
+        && b.min().y <= a.max().y
+}
+
+/// `here - (below grown by tol)`, part by part: each polygon of `here` (they are disjoint)
+/// minus the growth of the polygons of `below` whose boxes come within `tol` of its box (no
+/// other's growth reaches it). On a plate the booleans stay the size of one part, the parts
+/// run on all cores, and what no part comes near is never grown.
+fn uncovered(here: &MultiPolygon<f64>, below: &MultiPolygon<f64>, tol: f64) -> MultiPolygon<f64> {
     use rayon::prelude::*;
-    let index = super::BoxIndex::new(cover);
+    let index = super::BoxIndex::new(below);
+    // Round joins lie on the arc; the margin covers Clipper's integer rounding.
+    let m = tol.max(0.0) + 1e-3;
     let parts: Vec<Vec<Polygon<f64>>> = here
         .0
         .par_iter()
@@ -229,13 +259,20 @@ fn uncovered(here: &MultiPolygon<f64>, cover: &MultiPolygon<f64>) -> MultiPolygo
                 return Vec::new();
             };
             let near: Vec<Polygon<f64>> = index
-                .meeting([b.min().x, b.min().y], [b.max().x, b.max().y])
-                .map(|i| cover.0[i].clone())
+                .meeting(
+                    [b.min().x - m, b.min().y - m],
+                    [b.max().x + m, b.max().y + m],
+                )
+                .map(|i| below.0[i].clone())
                 .collect();
             if near.is_empty() {
+                return vec![p.clone()];
+            }
+            let grown = offset_parts(&MultiPolygon::new(near), tol);
+            if grown.0.is_empty() {
                 vec![p.clone()]
             } else {
-                BooleanOps::difference(p, &MultiPolygon::new(near)).0
+                BooleanOps::difference(p, &grown).0
             }
         })
         .collect();
@@ -245,7 +282,7 @@ fn uncovered(here: &MultiPolygon<f64>, cover: &MultiPolygon<f64>) -> MultiPolygo
 fn describe(
     polygon: Polygon<f64>,
     below: &MultiPolygon<f64>,
-    anchor_zone: &MultiPolygon<f64>,
+    anchor_reach: f64,
     layer: &Layer,
     boxes: &[Option<Rect<f64>>],
     opts: &DetectOptions,
@@ -253,9 +290,10 @@ fn describe(
     // Anchors shorter than a perimeter width are noise along the boundary, whatever the
     // narrowest region kept.
     let min_stretch = opts.min_width().max(opts.external_width);
-    // Boundary samples can only fall in zone polygons whose box meets the region's.
+    // The anchor zone (the layer below grown by `anchor_reach`) near the region: only the
+    // polygons below within that reach of its box can grow into it.
     let anchor_zone = match polygon.bounding_rect() {
-        Some(b) => near(anchor_zone, &b, 0.0),
+        Some(b) => offset_parts(&near(below, &b, anchor_reach + 1e-3), anchor_reach),
         None => MultiPolygon::new(Vec::new()),
     };
     let mut anchors = 0;
@@ -499,7 +537,7 @@ mod tests {
             rect(19.0, -1.0, 25.0, 11.0),
             rect(100.0, 100.0, 110.0, 110.0),
         ]);
-        let parts = uncovered(&here, &cover);
+        let parts = uncovered(&here, &cover, 0.0);
         let whole = BooleanOps::difference(&here, &cover);
         assert!(
             (parts.unsigned_area() - 150.0).abs() < 1e-6,
@@ -508,6 +546,16 @@ mod tests {
         );
         assert!((parts.unsigned_area() - whole.unsigned_area()).abs() < 1e-6);
         assert_eq!(parts.0.len(), 2);
+        // Grown by 0.5 mm the cover takes 0.5 mm more off the half-covered part, and the far
+        // polygon is never grown into anything.
+        let grown = uncovered(&here, &cover, 0.5);
+        let whole = BooleanOps::difference(&here, &crate::geometry::offset(&cover, 0.5));
+        assert!((grown.unsigned_area() - whole.unsigned_area()).abs() < 1e-3);
+        assert!(
+            (grown.unsigned_area() - 145.0).abs() < 1e-3,
+            "{}",
+            grown.unsigned_area()
+        );
     }
 
     fn layer() -> Layer {
