@@ -49,6 +49,9 @@ pub struct InfoReport {
     pub first_layer_z: Option<f64>,
     pub last_layer_z: Option<f64>,
     pub spiral_vase: bool,
+    /// Layers printed on more than the one layer before them (objects or support material at
+    /// different layer heights: their layers interleave in the file).
+    pub interleaved_layers: usize,
     pub filament_diameter_mm: f64,
     /// Filament on extrusion moves inside layers (excludes start G-code priming), mm.
     pub filament_mm: f64,
@@ -95,6 +98,7 @@ pub fn info<R: BufRead>(input: R, config: SlicerConfig, file: &str) -> std::io::
     .with_estimate(limits);
     let mut roles: BTreeMap<Role, RoleStats> = BTreeMap::new();
     let mut layers = 0usize;
+    let mut interleaved = 0usize;
     let (mut first_z, mut last_z) = (None, None);
     let (mut in_layers, mut all) = (0.0, 0.0);
     for layer in reader.by_ref() {
@@ -102,6 +106,7 @@ pub fn info<R: BufRead>(input: R, config: SlicerConfig, file: &str) -> std::io::
         let is_layer = layer.kind == LayerKind::Layer;
         if is_layer {
             layers += 1;
+            interleaved += usize::from(layer.rests_on.len() > 1);
             first_z.get_or_insert(layer.z);
             last_z = Some(layer.z);
         }
@@ -138,6 +143,7 @@ pub fn info<R: BufRead>(input: R, config: SlicerConfig, file: &str) -> std::io::
         first_layer_z: first_z,
         last_layer_z: last_z,
         spiral_vase: facts.spiral_vase,
+        interleaved_layers: interleaved,
         filament_diameter_mm: diameter,
         filament_mm: in_layers,
         filament_all_mm: all,
@@ -182,6 +188,13 @@ impl fmt::Display for InfoReport {
                 ""
             }
         )?;
+        if self.interleaved_layers > 0 {
+            writeln!(
+                f,
+                "              {} layers rest on more than the layer before them (objects or support at different layer heights)",
+                self.interleaved_layers
+            )?;
+        }
         write!(
             f,
             "  filament    {:.1} mm ({:.2} cm3, {:.1} g)",

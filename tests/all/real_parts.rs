@@ -320,6 +320,8 @@ fn objects_of_different_layer_heights_interleave_and_each_rests_on_its_own_layer
     let layers = all_layers(&data);
     let interleaved = layers.iter().filter(|l| l.rests_on.len() >= 2).count();
     assert!(interleaved > 20, "the parts' layers do not interleave");
+    let info = printonair::report::info(&data[..], SlicerConfig::parse(&data), "x").unwrap();
+    assert_eq!(info.interleaved_layers, interleaved);
     let (new, rep) = rewrite(&data, BridgeMode::Keep);
     // The rectangle's overhang starts at Z 10 (first layer 10.2), the triangle's too
     // (10.1 or 10.05 in 0.15 mm layers over a 0.2 mm first layer).
