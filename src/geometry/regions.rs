@@ -258,12 +258,34 @@ fn uncovered(here: &MultiPolygon<f64>, below: &MultiPolygon<f64>, tol: f64) -> M
             let Some(b) = p.bounding_rect() else {
                 return Vec::new();
             };
+            // Only what lies within `tol` of the part can grow into it: a polygon below that
+            // reaches far past the part's box (support's lines round a stem) is cut to the
+            // box grown by a little more first, and its growth inside the part is the same.
+            let (lo, hi) = (
+                [b.min().x - m, b.min().y - m],
+                [b.max().x + m, b.max().y + m],
+            );
+            let window = Rect::new(
+                coord! {x: lo[0] - m, y: lo[1] - m},
+                coord! {x: hi[0] + m, y: hi[1] + m},
+            )
+            .to_polygon();
             let near: Vec<Polygon<f64>> = index
-                .meeting(
-                    [b.min().x - m, b.min().y - m],
-                    [b.max().x + m, b.max().y + m],
-                )
-                .map(|i| below.0[i].clone())
+                .meeting(lo, hi)
+                .flat_map(|i| {
+                    let q = &below.0[i];
+                    let inside = q.bounding_rect().is_some_and(|qb| {
+                        qb.min().x >= lo[0] - m
+                            && qb.min().y >= lo[1] - m
+                            && qb.max().x <= hi[0] + m
+                            && qb.max().y <= hi[1] + m
+                    });
+                    if inside || q.exterior().0.len() < 64 {
+                        vec![q.clone()]
+                    } else {
+                        BooleanOps::intersection(q, &window).0
+                    }
+                })
                 .collect();
             if near.is_empty() {
                 return vec![p.clone()];
