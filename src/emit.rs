@@ -145,6 +145,10 @@ impl Tags {
     }
 }
 
+/// Longest retraction (mm of filament) a block undoes and redoes: longer than any printer's
+/// (Bowden printers retract up to about 10 mm).
+const MAX_RETRACTION: f64 = 20.0;
+
 /// Rewrites one layer. Returns the new bytes and per-region statistics.
 ///
 /// Long by design: one pass over the layer's lines with the splice state (where the nozzle really is, open blocks, tags) that every branch updates; the branches themselves call helpers.
@@ -979,6 +983,10 @@ fn emit_block(
     ));
     w.line(";TYPE:Overhang perimeter");
     let was_retracted = before.is_retracted();
+    // What the block pushes back at its start and pulls back at its end: the file's own
+    // retraction, never more than any printer retracts (a wrong count must not push metres
+    // of filament through the nozzle).
+    let pulled = before.retracted.clamp(0.0, MAX_RETRACTION);
     let height = rewrite.height;
     let mut travel = 0.0;
     let mut time = 0.0;
@@ -988,7 +996,7 @@ fn emit_block(
             w.set_feed(t.travel_speed);
             travel += dist(w.position(), first.points[0]);
             w.move_to(first.points[0]);
-            w.unretract(t, before.retracted.max(0.0));
+            w.unretract(t, pulled);
         } else {
             // A short hop (a gradual overhang's block starts where the slicer's perimeter
             // was) goes without retraction, as the file's own short travels do.
@@ -1057,7 +1065,7 @@ fn emit_block(
     w.fan(before.fan, true);
     travel += dist(w.position(), home);
     if was_retracted {
-        w.retract(t, before.retracted.max(0.0));
+        w.retract(t, pulled);
         w.set_feed(t.travel_speed);
         w.move_to(home);
     } else {

@@ -284,6 +284,11 @@ impl Machine {
                 // Retraction (also while wiping) and the push back that undoes it.
                 self.retracted = (self.retracted - m.e).max(0.0);
             }
+            // A slicer extrudes only from a primed nozzle: whatever was pulled back has been
+            // pushed again, if not by E alone (a multi-material toolchange unloads tens of
+            // millimetres with E alone and loads the next filament while moving along the
+            // wipe tower).
+            Action::Move(m) if m.is_extrusion() => self.retracted = 0.0,
             Action::FirmwareRetract => self.firmware_retracted = true,
             Action::FirmwareUnretract => self.firmware_retracted = false,
             _ => {}
@@ -666,6 +671,23 @@ mod tests {
         let mv = moves(&a);
         let len = mv[1].xy_length();
         assert!((len - std::f64::consts::TAU * 10.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn an_extrusion_primes_whatever_e_alone_pulled_back() {
+        // A multi-material unload (E alone) then a load while moving along the wipe tower.
+        let mut m = Machine::new();
+        for (k, l) in ["M83", "G1 E-15 F5000", "G1 E-79", "G1 X10 Y0 E20"]
+            .iter()
+            .enumerate()
+        {
+            m.step(&parse_line(l.as_bytes()), k as u64 + 1);
+            if k == 2 {
+                assert!((m.retracted - 94.0).abs() < 1e-9);
+            }
+        }
+        assert_eq!(m.retracted, 0.0);
+        assert!(!m.is_retracted());
     }
 
     #[test]

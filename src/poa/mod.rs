@@ -241,7 +241,13 @@ pub fn plan(
     let strictly_inner = offset(&inner, -0.01);
     let mut loops: Vec<Vec<Polyline>> = Vec::new();
     let mut front = first;
-    let max_loops = (reach / step).ceil() as usize + 2;
+    // The region's reach is measured to the nearest material below, which may be another
+    // object's across a gap that no front crosses (the fronts grow from what the zone
+    // touches): the loops may have to go as far as the zone extends. The growth stops by
+    // itself where the zone is filled; this only bounds it.
+    let extent =
+        geo::BoundingRect::bounding_rect(&zone).map_or(0.0, |b| b.width().hypot(b.height()));
+    let max_loops = (reach.max(extent.min(2000.0)) / step).ceil() as usize + 2;
     for _ in 0..max_loops {
         let pieces: Vec<Polyline> = clip_lines(&rings(&front), &strictly_inner, true)
             .into_iter()

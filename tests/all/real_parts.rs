@@ -407,3 +407,81 @@ fn support_material_is_left_to_the_slicer() {
         }
     }
 }
+
+#[test]
+fn a_neighbouring_object_does_not_cut_a_region_short() {
+    // The rectangle's slab reaches 40 mm from its column, but another object stands 6 mm
+    // past its tip: measured to the nearest material below, the region "reaches" less, and
+    // its loops once stopped there, leaving the slab's far end in air.
+    if !have_prusaslicer() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let amf = dir.path().join("two.amf");
+    write_amf(
+        &[
+            (&part("rect_overhang"), [40.0, 30.0], None),
+            (&part("shelves_hole"), [80.0, 120.0], None),
+        ],
+        &amf,
+    );
+    let Some(data) = slice_stl(&amf, &[]) else {
+        return;
+    };
+    let (new, rep) = rewrite(&data, BridgeMode::Keep);
+    assert!(rep.regions_rewritten >= 2, "{:?}", rep.skipped);
+    let (before, after) = (check(&data), check(&new));
+    println!(
+        "rect beside shelves: in air {:.1} -> {:.1} mm",
+        before.in_air_mm, after.in_air_mm
+    );
+    assert!(
+        after.in_air_mm < 0.005 * before.in_air_mm,
+        "{} mm in air",
+        after.in_air_mm
+    );
+    for (b, a) in before.layers.iter().zip(&after.layers) {
+        assert!(a.in_air_mm <= b.in_air_mm + 0.5, "layer {}: {a:?}", a.layer);
+    }
+}
+
+#[test]
+fn a_multi_material_toolchange_is_no_retraction_to_undo() {
+    // PrusaSlicer's single-extruder multi-material unloads ~94 mm of filament with E alone at
+    // each toolchange and loads the next one while moving along the wipe tower. Counted as
+    // retraction never undone, it summed to metres, and the block's unretract pushed them
+    // all through the nozzle (`G1 E9400`).
+    let args = [
+        "--nozzle-diameter",
+        "0.4,0.4",
+        "--filament-diameter",
+        "1.75,1.75",
+        "--wipe-tower",
+        "--single-extruder-multi-material",
+        "--perimeter-extruder",
+        "2",
+    ];
+    let Some(data) = slice("hook", &args) else {
+        return;
+    };
+    let (new, rep) = rewrite(&data, BridgeMode::Keep);
+    assert_eq!(rep.regions_rewritten, 1, "{:?}", rep.skipped);
+    let text = String::from_utf8_lossy(&new);
+    let mut inside = false;
+    for line in text.lines() {
+        if line.starts_with(";POA_BEGIN") {
+            inside = true;
+        } else if line.starts_with(";POA_END") {
+            inside = false;
+        } else if inside && line.starts_with("G1 E") {
+            let e: f64 = line[4..]
+                .split_whitespace()
+                .next()
+                .unwrap()
+                .parse()
+                .unwrap();
+            assert!(e.abs() <= 20.0, "{line}");
+        }
+    }
+    assert!(rep.time_added_s < 60.0, "{} s added", rep.time_added_s);
+}
