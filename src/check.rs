@@ -199,8 +199,9 @@ pub struct EndSupport {
 const ANCHOR_CONE: f64 = 150.0 * std::f64::consts::PI / 180.0;
 
 impl EndSupport {
-    /// The model of the layer `below` inside the boxes (lower, upper corner).
-    pub fn new(below: &Layer, boxes: &[([f64; 2], [f64; 2])], filament_area: f64) -> EndSupport {
+    /// The model of the layers `below` (those the layer rests on) inside the boxes (lower,
+    /// upper corner).
+    pub fn new(below: &[&Layer], boxes: &[([f64; 2], [f64; 2])], filament_area: f64) -> EndSupport {
         let (lo, hi) = boxes.iter().fold(
             ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]),
             |(lo, hi), (l, h)| {
@@ -221,7 +222,7 @@ impl EndSupport {
             filament_area,
             opts: CheckOptions::default(),
         };
-        for s in segments(below, filament_area) {
+        for s in below.iter().flat_map(|b| segments(b, filament_area)) {
             sup.insert(s);
         }
         sup
@@ -717,7 +718,7 @@ mod tests {
     fn a_strand_end_past_the_layer_below_dangles_and_is_anchored_on_the_wall() {
         let fa = filament_area(1.75);
         let below = ladder();
-        let sup = EndSupport::new(&below, &[([-5.0, -5.0], [15.0, 5.0])], fa);
+        let sup = EndSupport::new(&[&below], &[([-5.0, -5.0], [15.0, 5.0])], fa);
         // Along the line at Y 0, then 1.5 mm past its end, toward the wall at X 12.
         let s = strand(vec![[2.0, 0.0], [11.5 - 0.2, 0.0]], 0.45);
         let (head, tail) = sup.dangling(&s, 5.0).unwrap();

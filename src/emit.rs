@@ -145,6 +145,9 @@ impl Tags {
     }
 }
 
+/// Layers kept for what the next layers rest on ([`PoaPass::keep_below`]).
+const KEEP_BELOW: usize = 8;
+
 /// Longest retraction (mm of filament) a block undoes and redoes: longer than any printer's
 /// (Bowden printers retract up to about 10 mm).
 const MAX_RETRACTION: f64 = 20.0;
@@ -154,7 +157,8 @@ const MAX_RETRACTION: f64 = 20.0;
 /// Long by design: one pass over the layer's lines with the splice state (where the nozzle really is, open blocks, tags) that every branch updates; the branches themselves call helpers.
 pub fn rewrite_layer(
     layer: &Layer,
-    [below, above]: [Option<&Layer>; 2],
+    below: &[&Layer],
+    above: Option<&Layer>,
     rewrites: &[RegionRewrite],
     motion: &Motion,
     settings: &PoaSettings,
@@ -200,10 +204,12 @@ pub fn rewrite_layer(
         .flat_map(|p| p.seg_line.iter().copied())
         .collect();
     perimeter_lines.sort_unstable();
-    let tails = below.map_or_else(Vec::new, |b| {
+    let tails = if below.is_empty() {
+        Vec::new()
+    } else {
         let zones: Vec<&MultiPolygon<f64>> = rewrites.iter().map(|r| &r.plan.zone).collect();
-        dangling_tails(layer, b, above, &zones, &boxes, motion.filament_area)
-    });
+        dangling_tails(layer, below, above, &zones, &boxes, motion.filament_area)
+    };
     let nl = line_end(&layer.raw);
     let mut machine: Machine = start.clone();
     let mut out = Vec::with_capacity(layer.raw.len() + 64 * 1024);
@@ -497,7 +503,7 @@ const ANCHOR_WIDTHS: f64 = 4.0;
 /// Paths with arcs, and moves in relative coordinates, are left as they are.
 fn dangling_tails(
     layer: &Layer,
-    below: &Layer,
+    below: &[&Layer],
     above: Option<&Layer>,
     zones: &[&MultiPolygon<f64>],
     boxes: &[Option<geo::Rect<f64>>],
@@ -681,7 +687,7 @@ fn leaned_on<'a>(
 fn anchor_gradual(
     r: &RegionRewrite,
     layer: &Layer,
-    below: &Layer,
+    below: &[&Layer],
     motion: &Motion,
     flow: f64,
 ) -> RegionRewrite {
@@ -1300,7 +1306,7 @@ pub struct PoaPass<'a> {
     rewritten_below: Option<(usize, MultiPolygon<f64>)>,
     /// The strands of the layer before the one being rewritten, as read (the deposition
     /// model that trims sparse-infill ends over air stands on them); see [`PoaPass::keep_below`].
-    below_layer: Option<Layer>,
+    below_layers: std::collections::VecDeque<Layer>,
     /// The last layer this pass rewrote, read back from the bytes it wrote: what the layer
     /// above really stands on (moved perimeters, loops, cut and anchored ends).
     reread: Option<Layer>,
@@ -1318,7 +1324,7 @@ impl<'a> PoaPass<'a> {
             limits: crate::estimate::Estimator::new(crate::estimate::Limits::from_config(config)),
             next_id: 0,
             rewritten_below: None,
-            below_layer: None,
+            below_layers: std::collections::VecDeque::new(),
             reread: None,
             config: config.clone(),
             report: ProcessReport::default(),
@@ -1367,10 +1373,19 @@ impl<'a> PoaPass<'a> {
     /// rewrite judges the slicer's strand ends against it. A driver that does not call this
     /// gets no end trimming.
     pub fn keep_below(&mut self, layer: Layer) {
-        self.below_layer = match self.reread.take() {
-            Some(r) if r.index == layer.index => Some(r),
-            _ => Some(layer),
+        let mut kept = match self.reread.take() {
+            Some(r) if r.index == layer.index => r,
+            _ => layer,
         };
+        // Only the strands are judged against.
+        kept.raw = Vec::new();
+        kept.start = None;
+        // A layer rests on the one before it, or where objects or support at other layer
+        // heights interleave, on a few before that.
+        if self.below_layers.len() >= KEEP_BELOW {
+            self.below_layers.pop_front();
+        }
+        self.below_layers.push_back(kept);
     }
 
     /// Plans the chosen regions on all cores; regions where no loop fits go to the report.
@@ -1504,17 +1519,31 @@ impl PoaPass<'_> {
             self.plan(d, area(), &chosen)
         };
         let layer = &d.layer;
-        let below = self
-            .below_layer
-            .as_ref()
-            .filter(|b| b.index + 1 == layer.index && b.kind == layer.kind && layer.on_previous());
+        // The layers this one rests on, all of them kept, or none (no end anchored or cut).
+        let below: Vec<&Layer> = layer
+            .rests_on
+            .iter()
+            .map(|&i| {
+                self.below_layers
+                    .iter()
+                    .find(|b| b.index == i && b.kind == layer.kind)
+            })
+            .collect::<Option<Vec<&Layer>>>()
+            .unwrap_or_default();
         let rewrites: Vec<RegionRewrite> = rewrites
             .into_iter()
-            .map(|r| match below {
-                Some(b) if r.plan.with_perimeter => {
-                    anchor_gradual(&r, layer, b, &self.motion, self.opts.settings.flow_factor)
+            .map(|r| {
+                if r.plan.with_perimeter && !below.is_empty() {
+                    anchor_gradual(
+                        &r,
+                        layer,
+                        &below,
+                        &self.motion,
+                        self.opts.settings.flow_factor,
+                    )
+                } else {
+                    r
                 }
-                _ => r,
             })
             .collect();
         // Only a gradual overhang's plan moves the outline the layer above stands on (a wide
@@ -1540,10 +1569,8 @@ impl PoaPass<'_> {
         } else {
             let (bytes, stats) = rewrite_layer(
                 layer,
-                [
-                    below,
-                    above.filter(|a| a.index == layer.index + 1 && a.on_previous()),
-                ],
+                &below,
+                above.filter(|a| a.index == layer.index + 1 && a.on_previous()),
                 &rewrites,
                 &self.motion,
                 &self.opts.settings,
@@ -1841,7 +1868,7 @@ mod tests {
         let zones = [&zone];
         let empty = layer(2, Vec::new());
         let run = |below: &Layer, above: Option<&Layer>| {
-            dangling_tails(&here, below, above, &zones, &boxes, fa)
+            dangling_tails(&here, &[below], above, &zones, &boxes, fa)
         };
         // The wall is 0.7 mm on: the end is extended onto it.
         let with_wall = layer(0, vec![line_below.clone(), wall]);

@@ -644,7 +644,9 @@ impl State {
                 .split(',')
                 .map(|x| x.trim().trim_end_matches('m').parse::<f64>().ok())
                 .sum::<Option<f64>>()
-                .map(|m| m * 1000.0);
+                .map(|m| m * 1000.0)
+                // CuraEngine run on its own writes `0m`, a placeholder its front end fills in.
+                .filter(|mm| *mm > 0.0);
         }
     }
 

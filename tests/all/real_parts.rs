@@ -344,6 +344,12 @@ fn objects_of_different_layer_heights_interleave_and_each_rests_on_its_own_layer
     for (b, a) in before.layers.iter().zip(&after.layers) {
         assert!(a.in_air_mm <= b.in_air_mm + 0.5, "layer {}: {a:?}", a.layer);
     }
+    // Each rewritten layer is held: the slicer's infill ends beside the regions are anchored
+    // or cut against the layers each rests on, as in a file of one layer height.
+    for r in &rep.rewrites {
+        let a = &after.layers[r.layer - 1];
+        assert!(a.in_air_mm <= 1.0, "layer {}: {} mm in air", r.layer, a.in_air_mm);
+    }
     // The loops' beads are as wide as planned at their part's layer height (E made for the
     // 0.15 mm part at 0.15 mm, not at the layer's 0.2).
     let fa = printonair::layers::filament_area(1.75);
