@@ -348,7 +348,12 @@ fn objects_of_different_layer_heights_interleave_and_each_rests_on_its_own_layer
     // or cut against the layers each rests on, as in a file of one layer height.
     for r in &rep.rewrites {
         let a = &after.layers[r.layer - 1];
-        assert!(a.in_air_mm <= 1.0, "layer {}: {} mm in air", r.layer, a.in_air_mm);
+        assert!(
+            a.in_air_mm <= 1.0,
+            "layer {}: {} mm in air",
+            r.layer,
+            a.in_air_mm
+        );
     }
     // The loops' beads are as wide as planned at their part's layer height (E made for the
     // 0.15 mm part at 0.15 mm, not at the layer's 0.2).
