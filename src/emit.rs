@@ -1530,6 +1530,14 @@ impl PoaPass<'_> {
             })
             .collect::<Option<Vec<&Layer>>>()
             .unwrap_or_default();
+        let (rewrites, held) = drop_held(
+            layer,
+            &below,
+            rewrites,
+            self.loop_width,
+            self.motion.filament_area,
+        );
+        self.report.skipped.extend(held);
         let rewrites: Vec<RegionRewrite> = rewrites
             .into_iter()
             .map(|r| {
@@ -1582,6 +1590,59 @@ impl PoaPass<'_> {
         self.limits.track_limits(&layer.raw);
         Ok(rewritten)
     }
+}
+
+/// Leaves out the gradual overhangs whose slicer perimeter the deposition check finds
+/// held all along, by the layers `below` as printed (poa's rewrite of the layer under it
+/// included): moving it would gain nothing there, and the wall above was sliced on it
+/// where it is. They go to the report.
+fn drop_held(
+    layer: &Layer,
+    below: &[&Layer],
+    rewrites: Vec<RegionRewrite>,
+    loop_width: f64,
+    filament_area: f64,
+) -> (Vec<RegionRewrite>, Vec<SkippedRegion>) {
+    if below.is_empty() || !rewrites.iter().any(|r| r.plan.with_perimeter) {
+        return (rewrites, Vec::new());
+    }
+    let opts = crate::check::CheckOptions::default();
+    let c = crate::check::check_layer(below, layer, filament_area, &opts, true);
+    let mut walls: Vec<u64> = layer
+        .paths
+        .iter()
+        .filter(|p| matches!(p.role, Role::ExternalPerimeter | Role::OverhangPerimeter))
+        .flat_map(|p| p.seg_line.iter().copied())
+        .collect();
+    walls.sort_unstable();
+    let unheld: Vec<[f64; 2]> = c
+        .samples
+        .iter()
+        .filter(|s| s.support != crate::check::Support::Supported)
+        .filter(|s| walls.binary_search(&s.line).is_ok())
+        .map(|s| s.point)
+        .collect();
+    let mut kept = Vec::with_capacity(rewrites.len());
+    let mut skipped = Vec::new();
+    for r in rewrites {
+        let held = r.plan.with_perimeter && {
+            // The perimeter's centreline runs up to half a width inside the zone's edge.
+            let near = crate::geometry::offset(&r.plan.zone, loop_width / 2.0 + 0.05);
+            let index = RingIndex::new(&near);
+            !unheld.iter().any(|p| index.contains(*p))
+        };
+        if held {
+            skipped.push(SkippedRegion {
+                region: r.id,
+                layer: layer.index + 1,
+                kind: r.kind,
+                reason: "the slicer's perimeter is held as sliced".into(),
+            });
+        } else {
+            kept.push(r);
+        }
+    }
+    (kept, skipped)
 }
 
 /// The bead height of `object`'s strands on `layer` (where objects of different layer heights
@@ -1639,11 +1700,26 @@ fn reread(layer: &Layer, bytes: &[u8], config: &SlicerConfig) -> Option<Layer> {
             config: config.clone(),
         },
     );
+    let fa = config.e_area();
     let mut paths = Vec::new();
     for l in reader {
         let l = l.ok()?;
         if l.kind == crate::layers::LayerKind::Layer {
-            paths.extend(l.paths);
+            // Read alone, a layer without height comments (Cura) takes its whole Z as its
+            // height, and the widths made from E at that height: put back the layer's own,
+            // and the widths from E at it.
+            let wrong = l.height;
+            let fix = (wrong - layer.height).abs() > 1e-6 && layer.height > 0.0;
+            paths.extend(l.paths.into_iter().map(|mut p| {
+                if fix && (p.height - wrong).abs() < 1e-9 {
+                    let from_e = (p.width - p.e_width(fa)).abs() < 1e-9;
+                    p.height = layer.height;
+                    if from_e {
+                        p.width = p.e_width(fa);
+                    }
+                }
+                p
+            }));
         }
     }
     Some(Layer {
@@ -1833,6 +1909,43 @@ pub fn update_binary_metadata(file: &mut crate::bgcode::Bgcode, report: &Process
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_layer_read_back_keeps_its_height_and_widths() {
+        // Cura writes no height comments: read alone, the layer at Z 0.4 would take 0.4 mm as
+        // its height (nothing below it) and make its widths from E at that height.
+        let src = ";FLAVOR:Marlin\nM82\n;LAYER:0\nG1 Z0.2 F300\nG1 X0 Y0\nG1 X10 Y0 E0.5\n\
+                   ;LAYER:1\nG1 Z0.4\nG1 X0 Y1\nG1 X10 Y1 E1.0\n";
+        let config = SlicerConfig::parse(src.as_bytes());
+        let layers: Vec<Layer> = crate::layers::LayerReader::new(
+            src.as_bytes(),
+            crate::layers::ReaderOptions {
+                keep_raw: true,
+                config: config.clone(),
+            },
+        )
+        .map(|l| l.unwrap())
+        .filter(|l| l.kind == crate::layers::LayerKind::Layer)
+        .collect();
+        let l = &layers[1];
+        assert!((l.height - 0.2).abs() < 1e-9);
+        let back = reread(l, &l.raw, &config).expect("read back");
+        assert_eq!(back.paths.len(), l.paths.len());
+        for (a, b) in back.paths.iter().zip(&l.paths) {
+            assert!(
+                (a.height - b.height).abs() < 1e-9,
+                "{} vs {}",
+                a.height,
+                b.height
+            );
+            assert!(
+                (a.width - b.width).abs() < 1e-9,
+                "{} vs {}",
+                a.width,
+                b.width
+            );
+        }
+    }
 
     /// A strand of a 0.45 mm bead at 0.2 mm on 1.75 mm filament, each segment its own line
     /// from `line` on.
