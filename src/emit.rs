@@ -197,13 +197,7 @@ pub fn rewrite_layer(
         .map(|r| RingIndex::new(&r.plan.zone))
         .collect();
     // The lines of external perimeters, where a gradual overhang's block goes.
-    let mut perimeter_lines: Vec<u64> = layer
-        .paths
-        .iter()
-        .filter(|p| matches!(p.role, Role::ExternalPerimeter | Role::OverhangPerimeter))
-        .flat_map(|p| p.seg_line.iter().copied())
-        .collect();
-    perimeter_lines.sort_unstable();
+    let perimeter_lines = wall_lines(layer);
     let tails = if below.is_empty() {
         Vec::new()
     } else {
@@ -383,6 +377,18 @@ pub fn rewrite_layer(
         }
     }
     (out, stats)
+}
+
+/// The source lines of the layer's external (and overhang) perimeters, sorted.
+fn wall_lines(layer: &Layer) -> Vec<u64> {
+    let mut lines: Vec<u64> = layer
+        .paths
+        .iter()
+        .filter(|p| matches!(p.role, Role::ExternalPerimeter | Role::OverhangPerimeter))
+        .flat_map(|p| p.seg_line.iter().copied())
+        .collect();
+    lines.sort_unstable();
+    lines
 }
 
 /// Before a strand's first move `m` (the nozzle where `state` says): a short travel to `q`
@@ -1608,13 +1614,7 @@ fn drop_held(
     }
     let opts = crate::check::CheckOptions::default();
     let c = crate::check::check_layer(below, layer, filament_area, &opts, true);
-    let mut walls: Vec<u64> = layer
-        .paths
-        .iter()
-        .filter(|p| matches!(p.role, Role::ExternalPerimeter | Role::OverhangPerimeter))
-        .flat_map(|p| p.seg_line.iter().copied())
-        .collect();
-    walls.sort_unstable();
+    let walls = wall_lines(layer);
     let unheld: Vec<[f64; 2]> = c
         .samples
         .iter()

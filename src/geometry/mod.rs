@@ -222,6 +222,14 @@ pub fn grow_within(
     Simplify::simplify(&cut, FRONT_TOLERANCE / 2.0)
 }
 
+/// The cell (0 to `n - 1`) of a square grid starting at `origin` that holds `v`.
+///
+/// `as` saturates (a negative or NaN value is 0) and truncates, which for what is left is the
+/// floor: the same cell as `floor().max(0.0)`, without a call to libm's floor.
+pub(crate) fn cell_of(v: f64, origin: f64, cell: f64, n: usize) -> usize {
+    (((v - origin) / cell) as usize).min(n - 1)
+}
+
 /// Grid buckets of (cell, item) entries over `cells` cells: `start` (cell `c` holds
 /// `items[start[c]..start[c + 1]]`) and `items`, each cell's items in entry order.
 ///

@@ -156,13 +156,11 @@ impl Grid {
     }
 
     fn col(&self, x: f64) -> usize {
-        // `as` saturates (a negative or NaN value is 0) and truncates, which for what is left
-        // is the floor: the same cell as `floor().max(0.0)`, without a call to libm's floor.
-        (((x - self.origin[0]) / self.cell) as usize).min(self.nx - 1)
+        super::cell_of(x, self.origin[0], self.cell, self.nx)
     }
 
     fn row(&self, y: f64) -> usize {
-        (((y - self.origin[1]) / self.cell) as usize).min(self.ny - 1)
+        super::cell_of(y, self.origin[1], self.cell, self.ny)
     }
 
     /// Calls `f` with every segment entered in a cell within `reach` of `q`, until it

@@ -161,18 +161,16 @@ pub fn find_regions(
         return Vec::new();
     }
     let tol = opts.tolerance_at(layer.height);
-    let boxes: Vec<Option<Rect<f64>>> = layer.paths.iter().map(path_box).collect();
-    // Support material alone holds no region (see `support_only`): on a layer with support,
-    // only the islands where the part prints are searched, and the support's many lines are
-    // never grown and cut for nothing.
+    // Support material alone holds no region (see `support_only`), nor does a wipe tower: on a
+    // layer that prints more than the part, only the islands where the part prints are
+    // searched, and the rest's many lines are never grown and cut for nothing.
     let searched;
     let here = if layer.paths.iter().any(|p| !p.role.is_part()) {
         let part: Vec<Rect<f64>> = layer
             .paths
             .iter()
-            .zip(&boxes)
-            .filter(|(p, _)| p.role.is_part())
-            .filter_map(|(_, b)| *b)
+            .filter(|p| p.role.is_part())
+            .filter_map(path_box)
             .collect();
         searched = MultiPolygon::new(
             here.0
@@ -201,6 +199,7 @@ pub fn find_regions(
     if kept.is_empty() {
         return Vec::new();
     }
+    let boxes: Vec<Option<Rect<f64>>> = layer.paths.iter().map(path_box).collect();
     kept.into_iter()
         .map(|polygon| describe(polygon, below, tol + ANCHOR_SLACK, layer, &boxes, opts))
         // Support material over air is the slicer's business: support lines stacked over the

@@ -74,11 +74,11 @@ impl RingIndex {
     }
 
     fn col(&self, x: f64) -> usize {
-        (((x - self.origin[0]) / self.cell) as usize).min(self.nx - 1)
+        super::cell_of(x, self.origin[0], self.cell, self.nx)
     }
 
     fn row(&self, y: f64) -> usize {
-        (((y - self.origin[1]) / self.cell) as usize).min(self.ny - 1)
+        super::cell_of(y, self.origin[1], self.cell, self.ny)
     }
 
     /// Calls `f` with every cell the segment's box covers (a segment is short next to the
