@@ -156,6 +156,13 @@ impl SlicerConfig {
 
     /// External perimeter width in mm, falling back to the general extrusion width and then
     /// to Slic3r's automatic width (1.125 x nozzle).
+    /// Whether the file states the external perimeter width (or the general one).
+    pub fn external_perimeter_width_stated(&self) -> bool {
+        self.width("external_perimeter_extrusion_width")
+            .or_else(|| self.width("extrusion_width"))
+            .is_some()
+    }
+
     pub fn external_perimeter_width(&self) -> f64 {
         self.width("external_perimeter_extrusion_width")
             .or_else(|| self.width("extrusion_width"))

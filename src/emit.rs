@@ -1302,6 +1302,9 @@ pub struct PoaPass<'a> {
     opts: &'a ProcessOptions,
     motion: Motion,
     loop_width: f64,
+    /// The file's settings state the external perimeter width (else the layer's own
+    /// external perimeters tell it: CuraEngine writes no settings).
+    width_stated: bool,
     /// The motion limits in force where each layer starts (the file changes them with M20x
     /// lines), for the time a rewrite adds.
     limits: crate::estimate::Estimator,
@@ -1327,6 +1330,7 @@ impl<'a> PoaPass<'a> {
             opts,
             motion: Motion::from_config(config, &opts.settings),
             loop_width: config.external_perimeter_width(),
+            width_stated: config.external_perimeter_width_stated(),
             limits: crate::estimate::Estimator::new(crate::estimate::Limits::from_config(config)),
             next_id: 0,
             rewritten_below: None,
@@ -1335,6 +1339,30 @@ impl<'a> PoaPass<'a> {
             config: config.clone(),
             report: ProcessReport::default(),
         }
+    }
+
+    /// Width of the loops and the moved perimeter on `layer`: the file's external perimeter
+    /// width, or where the file does not state it, the median width of the layer's external
+    /// perimeters as extruded (Cura's 0.5 mm walls were taken for 0.45 mm, and the moved
+    /// perimeter hung the difference farther out).
+    fn width_on(&self, layer: &Layer) -> f64 {
+        if self.width_stated {
+            return self.loop_width;
+        }
+        let mut widths: Vec<f64> = layer
+            .paths
+            .iter()
+            .filter(|p| p.role == crate::layers::Role::ExternalPerimeter)
+            .map(|p| p.width)
+            .filter(|w| w.is_finite())
+            .collect();
+        if widths.is_empty() {
+            return self.loop_width;
+        }
+        let mid = widths.len() / 2;
+        let (_, median, _) = widths.select_nth_unstable_by(mid, f64::total_cmp);
+        // A width far from the nozzle's is a misread flow, not a wall.
+        median.clamp(0.6 * self.loop_width, 2.0 * self.loop_width)
     }
 
     /// Numbers the layer's regions and picks those the settings and object filters allow;
@@ -1408,8 +1436,8 @@ impl<'a> PoaPass<'a> {
             .map(|m| [m.position()[0], m.position()[1]])
             .unwrap_or([0.0, 0.0]);
         let widths = crate::poa::Widths {
-            loop_width: self.loop_width,
-            perimeter_width: self.loop_width,
+            loop_width: self.width_on(layer),
+            perimeter_width: self.width_on(layer),
             tolerance: self.opts.detect.tolerance_at(layer.height),
         };
         let settings = &self.opts.settings;
@@ -1540,7 +1568,7 @@ impl PoaPass<'_> {
             layer,
             &below,
             rewrites,
-            self.loop_width,
+            self.width_on(layer),
             self.motion.filament_area,
         );
         self.report.skipped.extend(held);

@@ -289,18 +289,15 @@ impl Support {
             loops: loop_polys,
         };
         if loops_ok && boxes_apart(&mut boxes) {
-            let pick = |keep: &dyn Fn(&Seg) -> bool| {
-                Grid::new(sup.grid.segs.iter().filter(|s| keep(s)).copied().collect())
-            };
-            let inner = pick(&|s| s.role == Role::Perimeter);
-            let ext = pick(&|s| s.loop_at.is_some());
-            sup.flank_gap = Support::flanks(layer, &inner);
+            // Both searches read the outline's grid and skip the strands they do not want:
+            // building a grid of each kind cost more than the skipping.
+            sup.flank_gap = Support::flanks(layer, &sup.grid);
             let loop_len: Vec<f64> = sup
                 .loops
                 .iter()
                 .map(|(_, pts)| super::polyline_length(pts))
                 .collect();
-            sup.approach = Support::closest_approach(&ext, &loop_len);
+            sup.approach = Support::closest_approach(&sup.grid, &loop_len);
         }
         sup
     }
@@ -310,7 +307,7 @@ impl Support {
     /// from its centerline, [`super::area`]'s walled test) reaches. Sampled every
     /// [`FLANK_STEP`]: a point between samples is at most half a step from one, so the gap
     /// grows and the reach shrinks by that much.
-    fn flanks(layer: &Layer, inner: &Grid) -> Option<f64> {
+    fn flanks(layer: &Layer, outline: &Grid) -> Option<f64> {
         let mut widest = 0.0f64;
         for p in layer
             .paths
@@ -322,6 +319,9 @@ impl Support {
             for w in p.points.windows(2) {
                 for q in samples_every(w[0], w[1], FLANK_STEP) {
                     let gap = |s: &Seg| {
+                        if s.role != Role::Perimeter {
+                            return None;
+                        }
                         let d = dist2(q, s).sqrt();
                         (d + s.half - FLANK_STEP / 2.0 > he + 0.11)
                             .then(|| d - he - s.half + FLANK_STEP / 2.0)
@@ -330,7 +330,7 @@ impl Support {
                     // any gap under FLANK_OK will do (only the widest one is kept).
                     let mut best = last.as_ref().and_then(gap).unwrap_or(f64::INFINITY);
                     if best > FLANK_OK {
-                        inner.any_near(q, CELL, |s| {
+                        outline.any_near(q, CELL, |s| {
                             if let Some(g) = gap(s) {
                                 if g < best {
                                     best = g;
@@ -373,13 +373,13 @@ impl Support {
 
     /// See [`Support::approach`]: exact segment-to-segment distances between the external
     /// loops' segments, up to [`CELL`].
-    fn closest_approach(ext: &Grid, loop_len: &[f64]) -> f64 {
+    fn closest_approach(outline: &Grid, loop_len: &[f64]) -> f64 {
         let mut closest = CELL;
-        for s in &ext.segs {
+        for s in &outline.segs {
             let Some((id, at)) = s.loop_at else { continue };
             let slen = seg_len(s);
             let mid = lerp(s.a, s.b, 0.5);
-            ext.any_near(mid, slen / 2.0 + closest, |t| {
+            outline.any_near(mid, slen / 2.0 + closest, |t| {
                 let Some((tid, tat)) = t.loop_at else {
                     return false;
                 };

@@ -124,6 +124,15 @@ pub use crate::geometry::polyline_length;
 
 /// Zones narrower than this are slivers of numeric noise along walls, not overhang.
 const SLIVER: f64 = 0.03;
+/// In a gradual overhang's thin ring, a loop whose centre lies this many widths or more
+/// inside the perimeter's is of full width; nearer, of half width.
+const HALF_LOOP_AT: f64 = 0.35;
+/// ... and a loop is laid only where its centre lies this many widths or more inside the
+/// perimeter's: loop 1 (a tenth of a width past the wall below) where the perimeter would
+/// hang 0.3 w or more past what holds it. The deposition check asks 0.25 w; a perimeter
+/// between the two rests on 70 % of its width and sets fine, and a tighter mark scatters
+/// short loop pieces (each with its travel) round every faceted cone at 60 degrees.
+const NEAR_LOOP_AT: f64 = 0.2;
 
 /// Plans the loops of `region`. `start` is where the nozzle is when the plan begins.
 pub fn plan(
@@ -207,16 +216,47 @@ pub fn plan(
     }
     let perimeter = clip_lines(&rings(&perimeter_area), &zone, true);
     if thin {
-        let room = intersection(&zone, &offset(&perimeter_area, -w / 4.0));
+        // Loops from the wall below outward, `step` apart like any region's, where the
+        // perimeter would not rest on what lies inside it: loop k goes where its centre is
+        // at least [`NEAR_LOOP_AT`] widths inside the perimeter's, of full width where it is
+        // [`HALF_LOOP_AT`] inside or more, of half width nearer (a full loop there would lie
+        // almost under the perimeter). The perimeter is then less than 0.8 w from the last
+        // loop's centre, within 0.3 w of its edge, where a strip wider than a bead (an
+        // arch's last layers, a sphere near its equator) once left it hanging.
+        let near_room = intersection(&zone, &offset(&perimeter_area, -NEAR_LOOP_AT * w));
+        let full_room = offset(&perimeter_area, -HALF_LOOP_AT * w);
+        let extent =
+            geo::BoundingRect::bounding_rect(&zone).map_or(0.0, |b| b.width().hypot(b.height()));
         let mut at = start;
-        let loop1 = clip_lines(&rings(&front), &room, true);
-        let half = Shape {
-            kind: StrandKind::Loop,
-            loop_index: 1,
-            width: w / 2.0,
-        };
-        let mut strands = half.strands(loop1, w, &mut at);
-        let loops = usize::from(!strands.is_empty());
+        let mut strands = Vec::new();
+        let mut loops = 0;
+        for k in 1..=(extent.min(2000.0) / step).ceil() as usize + 2 {
+            let ring = if k == 1 {
+                rings(&front)
+            } else {
+                rings(&offset(&below_loc, k as f64 * step - w / 2.0))
+            };
+            let pieces = clip_lines(&ring, &near_room, true);
+            if pieces.is_empty() {
+                break;
+            }
+            let shape = |width: f64| Shape {
+                kind: StrandKind::Loop,
+                loop_index: k,
+                width,
+            };
+            let before = strands.len();
+            let full = clip_lines(&pieces, &full_room, true);
+            let half = clip_lines(&pieces, &full_room, false);
+            // Pieces shorter than two widths are where the perimeter only just passes the
+            // mark (faceted walls): each costs a travel, and the perimeter there is within
+            // reach of what holds it anyway.
+            strands.extend(shape(w).strands(full, 2.0 * w, &mut at));
+            strands.extend(shape(w / 2.0).strands(half, 2.0 * w, &mut at));
+            if strands.len() > before {
+                loops = k;
+            }
+        }
         strands.extend(Shape::perimeter(we).strands(perimeter, we, &mut at));
         return Plan {
             zone,
@@ -927,6 +967,98 @@ mod tests {
             travel <= 0.10 * length,
             "travel {travel:.1} mm for {length:.1} mm of loops"
         );
+    }
+
+    /// A regular polygon of `n` corners round (10, 10).
+    fn disc(r: f64, n: usize) -> Polygon<f64> {
+        let pts: Vec<(f64, f64)> = (0..n)
+            .map(|i| {
+                let t = std::f64::consts::TAU * i as f64 / n as f64;
+                (10.0 + r * t.cos(), 10.0 + r * t.sin())
+            })
+            .collect();
+        Polygon::new(pts.into(), vec![])
+    }
+
+    /// A gradual overhang `o` mm past the wall below, from a fraction of a width to almost
+    /// four, as a straight strip (an arch's layer) and as a ring (a sphere's): every strand
+    /// of the plan rests on what is printed before it (the layer below or an earlier strand)
+    /// (material within 0.3 of its width: the deposition check asks 0.25, see
+    /// [`NEAR_LOOP_AT`]), and the perimeter comes last.
+    #[test]
+    fn a_gradual_overhang_of_any_width_rests_on_what_is_printed_before() {
+        let widths = Widths {
+            loop_width: W,
+            perimeter_width: W,
+            tolerance: W / 2.0,
+        };
+        type Case = (
+            MultiPolygon<f64>,
+            MultiPolygon<f64>,
+            Box<dyn Fn([f64; 2]) -> f64>,
+        );
+        for tenths in 3..=40 {
+            let o = W * f64::from(tenths) / 10.0;
+            let cases: Vec<(&str, Case)> = vec![
+                (
+                    "strip",
+                    (
+                        mp(vec![rect(0.0, 0.0, 10.0, 10.0)]),
+                        mp(vec![rect(0.0, 0.0, 10.0 + o, 10.0)]),
+                        // Away from the strip's ends, where strands turn along its edge.
+                        Box::new(|p: [f64; 2]| {
+                            if p[1] < 1.0 || p[1] > 9.0 {
+                                0.0
+                            } else {
+                                (p[0] - 10.0).max(0.0)
+                            }
+                        }),
+                    ),
+                ),
+                (
+                    "ring",
+                    (
+                        mp(vec![disc(5.0, 256)]),
+                        mp(vec![disc(5.0 + o, 256)]),
+                        Box::new(|p: [f64; 2]| ((p[0] - 10.0).hypot(p[1] - 10.0) - 5.0).max(0.0)),
+                    ),
+                ),
+            ];
+            for (name, (below, area, to_below)) in cases {
+                let zone = difference(&area, &below);
+                let plan = plan(
+                    &region(zone.0[0].clone(), &below),
+                    &below,
+                    &area,
+                    widths,
+                    &PoaSettings::default(),
+                    [0.0, 0.0],
+                );
+                if plan.strands.is_empty() {
+                    // Only where the slicer's perimeter rests on the wall below as it is.
+                    assert!(o - W / 2.0 <= 0.3 * W, "{name} o {o:.3}: nothing planned");
+                    continue;
+                }
+                let last = plan.strands.last().unwrap();
+                assert_eq!(last.kind, StrandKind::Perimeter, "{name} o {o:.3}");
+                for (i, s) in plan.strands.iter().enumerate() {
+                    let before = &plan.strands[..i];
+                    for p in samples(&s.points, 0.05) {
+                        let to_earlier = before
+                            .iter()
+                            .map(|b| dist_to(p, &[&b.points]) - b.width / 2.0)
+                            .fold(f64::INFINITY, f64::min);
+                        let gap = to_below(p).min(to_earlier);
+                        assert!(
+                            gap <= 0.3 * s.width + 1e-6,
+                            "{name} o {o:.3}: {:?} {} at {p:?} is {gap:.3} mm from material",
+                            s.kind,
+                            s.loop_index,
+                        );
+                    }
+                }
+            }
+        }
     }
 
     #[test]
