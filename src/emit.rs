@@ -99,6 +99,9 @@ pub struct RewriteStats {
     pub travel_mm: f64,
     /// Of that, travel between the block's own strands (mm): what joining loops saves.
     pub inner_travel_mm: f64,
+    /// The longest of those travels (mm): a narrow region whose outline meets it at two far
+    /// ends (an arch's crown) crosses it once, between finishing one end and the other.
+    pub longest_inner_travel_mm: f64,
     /// Estimated time added (s), before acceleration: new strands and travel minus what the
     /// removed extrusion took.
     pub time_added_s: f64,
@@ -147,6 +150,25 @@ impl Tags {
 
 /// Layers kept for what the next layers rest on ([`PoaPass::keep_below`]).
 const KEEP_BELOW: usize = 8;
+
+/// Layers whose external perimeter width [`PoaPass::width_on`] takes the median of.
+const WALL_WIDTH_LAYERS: usize = 32;
+
+/// Median width of a layer's external perimeters, if it has any.
+fn median_wall_width(layer: &Layer) -> Option<f64> {
+    let mut widths: Vec<f64> = layer
+        .paths
+        .iter()
+        .filter(|p| p.role == crate::layers::Role::ExternalPerimeter)
+        .map(|p| p.width)
+        .filter(|w| w.is_finite() && *w > 0.0)
+        .collect();
+    if widths.is_empty() {
+        return None;
+    }
+    let mid = widths.len() / 2;
+    Some(*widths.select_nth_unstable_by(mid, f64::total_cmp).1)
+}
 
 /// Longest retraction (mm of filament) a block undoes and redoes: longer than any printer's
 /// (Bowden printers retract up to about 10 mm).
@@ -1038,6 +1060,7 @@ fn emit_block(
             let hop = w.travel(t, s.points[0], !short);
             travel += hop;
             stats.inner_travel_mm += hop;
+            stats.longest_inner_travel_mm = stats.longest_inner_travel_mm.max(hop);
             time += t.travel_time(d);
         }
         if settings.dwell > 0.0
@@ -1305,6 +1328,8 @@ pub struct PoaPass<'a> {
     /// The file's settings state the external perimeter width (else the layer's own
     /// external perimeters tell it: CuraEngine writes no settings).
     width_stated: bool,
+    /// Median external perimeter width of each of the last layers, where not stated.
+    wall_widths: std::collections::VecDeque<f64>,
     /// The motion limits in force where each layer starts (the file changes them with M20x
     /// lines), for the time a rewrite adds.
     limits: crate::estimate::Estimator,
@@ -1331,6 +1356,7 @@ impl<'a> PoaPass<'a> {
             motion: Motion::from_config(config, &opts.settings),
             loop_width: config.external_perimeter_width(),
             width_stated: config.external_perimeter_width_stated(),
+            wall_widths: std::collections::VecDeque::new(),
             limits: crate::estimate::Estimator::new(crate::estimate::Limits::from_config(config)),
             next_id: 0,
             rewritten_below: None,
@@ -1341,28 +1367,39 @@ impl<'a> PoaPass<'a> {
         }
     }
 
-    /// Width of the loops and the moved perimeter on `layer`: the file's external perimeter
-    /// width, or where the file does not state it, the median width of the layer's external
-    /// perimeters as extruded (Cura's 0.5 mm walls were taken for 0.45 mm, and the moved
-    /// perimeter hung the difference farther out).
+    /// Width of the loops and the moved perimeter: the file's external perimeter width, or
+    /// where the file does not state it (CuraEngine writes no settings), the median of the
+    /// recent layers' external perimeter widths as extruded. Cura's 0.5 mm walls were taken
+    /// for 0.45 mm, and the moved perimeter hung the difference farther out; a floating
+    /// layer's own walls are no guide (Cura's bridge walls run at another flow).
     fn width_on(&self, layer: &Layer) -> f64 {
         if self.width_stated {
             return self.loop_width;
         }
-        let mut widths: Vec<f64> = layer
-            .paths
-            .iter()
-            .filter(|p| p.role == crate::layers::Role::ExternalPerimeter)
-            .map(|p| p.width)
-            .filter(|w| w.is_finite())
-            .collect();
-        if widths.is_empty() {
+        let mut seen: Vec<f64> = self.wall_widths.iter().copied().collect();
+        if seen.is_empty() {
+            seen.extend(median_wall_width(layer));
+        }
+        if seen.is_empty() {
             return self.loop_width;
         }
-        let mid = widths.len() / 2;
-        let (_, median, _) = widths.select_nth_unstable_by(mid, f64::total_cmp);
+        let mid = seen.len() / 2;
+        let (_, median, _) = seen.select_nth_unstable_by(mid, f64::total_cmp);
         // A width far from the nozzle's is a misread flow, not a wall.
         median.clamp(0.6 * self.loop_width, 2.0 * self.loop_width)
+    }
+
+    /// Notes the layer's external perimeter width for [`PoaPass::width_on`].
+    fn note_wall_width(&mut self, layer: &Layer) {
+        if self.width_stated || layer.kind != crate::layers::LayerKind::Layer {
+            return;
+        }
+        if let Some(w) = median_wall_width(layer) {
+            if self.wall_widths.len() >= WALL_WIDTH_LAYERS {
+                self.wall_widths.pop_front();
+            }
+            self.wall_widths.push_back(w);
+        }
     }
 
     /// Numbers the layer's regions and picks those the settings and object filters allow;
@@ -1622,6 +1659,7 @@ impl PoaPass<'_> {
             Some(bytes)
         };
         self.limits.track_limits(&layer.raw);
+        self.note_wall_width(layer);
         Ok(rewritten)
     }
 }

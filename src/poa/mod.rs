@@ -133,6 +133,9 @@ const HALF_LOOP_AT: f64 = 0.35;
 /// between the two rests on 70 % of its width and sets fine, and a tighter mark scatters
 /// short loop pieces (each with its travel) round every faceted cone at 60 degrees.
 const NEAR_LOOP_AT: f64 = 0.2;
+/// How much nearer the loop before (in widths) a half-width loop of a thin ring lies than a
+/// full one: at a full step its narrower bead would only just touch the loop before.
+const HALF_BACK: f64 = 0.05;
 
 /// Plans the loops of `region`. `start` is where the nozzle is when the plan begins.
 pub fn plan(
@@ -225,6 +228,11 @@ pub fn plan(
         // arch's last layers, a sphere near its equator) once left it hanging.
         let near_room = intersection(&zone, &offset(&perimeter_area, -NEAR_LOOP_AT * w));
         let full_room = offset(&perimeter_area, -HALF_LOOP_AT * w);
+        // Where a half-width loop goes, measured where the full one would lie.
+        let near_half = intersection(
+            &zone,
+            &offset(&perimeter_area, -(NEAR_LOOP_AT + HALF_BACK) * w),
+        );
         let extent =
             geo::BoundingRect::bounding_rect(&zone).map_or(0.0, |b| b.width().hypot(b.height()));
         let mut at = start;
@@ -247,7 +255,13 @@ pub fn plan(
             };
             let before = strands.len();
             let full = clip_lines(&pieces, &full_room, true);
-            let half = clip_lines(&pieces, &full_room, false);
+            // A half-width loop bites into the loop before it as deep for its width as a
+            // full one: [`HALF_BACK`] widths nearer it.
+            let half_ring = rings(&offset(
+                &below_loc,
+                k as f64 * step - w / 2.0 - HALF_BACK * w,
+            ));
+            let half = clip_lines(&clip_lines(&half_ring, &near_half, true), &full_room, false);
             // Pieces shorter than two widths are where the perimeter only just passes the
             // mark (faceted walls): each costs a travel, and the perimeter there is within
             // reach of what holds it anyway.
@@ -318,13 +332,7 @@ pub fn plan(
         })
         .collect();
     let loops_count = strands.iter().map(|s| s.loop_index).max().unwrap_or(0);
-    let contour_shape = Shape {
-        kind: StrandKind::Contour,
-        loop_index: 0,
-        width: w,
-    };
-    strands.extend(contour_shape.strands(contour, w, &mut at));
-    strands.extend(Shape::perimeter(we).strands(perimeter, we, &mut at));
+    strands.extend(finish_order(contour, perimeter, w, we, &mut at));
     Plan {
         zone,
         strands,
@@ -428,6 +436,67 @@ pub fn reorder_from(strands: &[Strand], mut at: [f64; 2]) -> Vec<Strand> {
         };
         out.extend(shape.strands(pieces, 0.0, &mut at));
         i = j;
+    }
+    out
+}
+
+/// The contour's pieces (width `w`) and the moved perimeter's (width `we`) in one
+/// nearest-first order from `at`, a perimeter piece only once every contour piece beside it
+/// is printed (it leans on them). A region whose outline meets it at two far ends (the
+/// strip at an arch's crown) so finishes one end, then the other, instead of crossing to
+/// the far end for the contour and back again for the perimeter.
+fn finish_order(
+    contour: Vec<Polyline>,
+    perimeter: Vec<Polyline>,
+    w: f64,
+    we: f64,
+    at: &mut [f64; 2],
+) -> Vec<Strand> {
+    let reach = w + we;
+    let mut todo: Vec<(StrandKind, Polyline, [f64; 4])> = contour
+        .into_iter()
+        .filter(|p| polyline_length(p) >= w)
+        .map(|p| (StrandKind::Contour, p))
+        .chain(
+            perimeter
+                .into_iter()
+                .filter(|p| polyline_length(p) >= we)
+                .map(|p| (StrandKind::Perimeter, p)),
+        )
+        .map(|(k, p)| {
+            // Pieces are at least a width long: never empty.
+            let b = crate::geometry::points_box(&p)
+                .map_or([0.0; 4], |r| [r.min().x, r.min().y, r.max().x, r.max().y]);
+            (k, p, b)
+        })
+        .collect();
+    let meets = |a: &[f64; 4], b: &[f64; 4]| {
+        a[0] - reach <= b[2] && b[0] <= a[2] + reach && a[1] - reach <= b[3] && b[1] <= a[3] + reach
+    };
+    let mut out = Vec::with_capacity(todo.len());
+    while !todo.is_empty() {
+        let ready = |i: usize| {
+            todo[i].0 == StrandKind::Contour
+                || !todo
+                    .iter()
+                    .any(|c| c.0 == StrandKind::Contour && meets(&c.2, &todo[i].2))
+        };
+        // A contour piece is always ready, so some piece is.
+        let next = (0..todo.len())
+            .filter(|&i| ready(i))
+            .min_by(|&i, &j| {
+                start_distance2(&todo[i].1, *at).total_cmp(&start_distance2(&todo[j].1, *at))
+            })
+            .unwrap_or(0);
+        let (kind, mut points, _) = todo.swap_remove(next);
+        start_nearest(&mut points, *at);
+        *at = points[points.len() - 1];
+        out.push(Strand {
+            kind,
+            loop_index: 0,
+            points,
+            width: if kind == StrandKind::Perimeter { we } else { w },
+        });
     }
     out
 }
@@ -983,8 +1052,8 @@ mod tests {
     /// A gradual overhang `o` mm past the wall below, from a fraction of a width to almost
     /// four, as a straight strip (an arch's layer) and as a ring (a sphere's): every strand
     /// of the plan rests on what is printed before it (the layer below or an earlier strand)
-    /// (material within 0.3 of its width: the deposition check asks 0.25, see
-    /// [`NEAR_LOOP_AT`]), and the perimeter comes last.
+    /// (material within a quarter of its width, as the deposition check asks; 0.3 for the
+    /// perimeter, see [`NEAR_LOOP_AT`]), and the perimeter comes last.
     #[test]
     fn a_gradual_overhang_of_any_width_rests_on_what_is_printed_before() {
         let widths = Widths {
@@ -1049,8 +1118,14 @@ mod tests {
                             .map(|b| dist_to(p, &[&b.points]) - b.width / 2.0)
                             .fold(f64::INFINITY, f64::min);
                         let gap = to_below(p).min(to_earlier);
+                        // Loops as the check asks; the perimeter see [`NEAR_LOOP_AT`].
+                        let reach = if s.kind == StrandKind::Perimeter {
+                            0.3
+                        } else {
+                            0.25
+                        };
                         assert!(
-                            gap <= 0.3 * s.width + 1e-6,
+                            gap <= reach * s.width + 1e-6,
                             "{name} o {o:.3}: {:?} {} at {p:?} is {gap:.3} mm from material",
                             s.kind,
                             s.loop_index,

@@ -49,11 +49,20 @@ fn judge(name: &str) -> Vec<(String, CheckReport, CheckReport)> {
 }
 
 fn judge_with(name: &str, args: &[&str]) -> Vec<(String, CheckReport, CheckReport)> {
-    let mut out = Vec::new();
-    for (slicer, data) in slices_with(name, args) {
-        let what = format!("{name} by {slicer}");
-        let (new, rep) = rewrite(&data, BridgeMode::Keep);
-        let (before, after) = (check(&data), check(&new));
+    slices_with(name, args)
+        .into_iter()
+        .map(|(slicer, data)| judge_one(format!("{name} by {slicer}"), &data))
+        .collect()
+}
+
+/// Rewrites one slice and checks what every part must meet.
+///
+/// Long by design: each claim of the acceptance measured next to the others on the
+/// same rewrite.
+fn judge_one(what: String, data: &[u8]) -> (String, CheckReport, CheckReport) {
+    {
+        let (new, rep) = rewrite(data, BridgeMode::Keep);
+        let (before, after) = (check(data), check(&new));
         assert_eq!(before.layers.len(), after.layers.len(), "{what}");
         let rewritten: std::collections::BTreeSet<usize> =
             rep.rewrites.iter().map(|r| r.layer).collect();
@@ -73,21 +82,10 @@ fn judge_with(name: &str, args: &[&str]) -> Vec<(String, CheckReport, CheckRepor
         );
         // Floating layers: what the slicer prints in air is held up, the slicer's own strand
         // ends beside the region included (at most 1 mm left in air).
-        for (b, a) in before.layers.iter().zip(&after.layers) {
-            if b.in_air_mm > 100.0 {
-                assert!(
-                    a.in_air_mm <= 1.0,
-                    "{what}: layer {} (Z {}) {} mm in air ({} before)",
-                    b.layer,
-                    b.z,
-                    a.in_air_mm,
-                    b.in_air_mm
-                );
-            }
-        }
+        held_up(&what, &before, &after, 100.0);
         // A rewritten layer keeps its printed area outside the regions (over the layer
         // below as sliced, where nothing is rewritten).
-        let (area0, area1) = (areas(&data), areas(&new));
+        let (area0, area1) = (areas(data), areas(&new));
         for &l in rewritten.iter().filter(|&&l| l >= 2) {
             let over = offset(&area0[l - 2], 0.01);
             let a0 = intersection(&area0[l - 1], &over).unsigned_area();
@@ -118,13 +116,17 @@ fn judge_with(name: &str, args: &[&str]) -> Vec<(String, CheckReport, CheckRepor
         }
         // Loops joined: travel between a region's own strands is a small share of them. (A
         // gradual overhang's ring is cut where the wall below already holds it: the travel
-        // over those gaps is the gaps, and is only reported.)
+        // over those gaps is the gaps, and is only reported.) One crossing is left out: a
+        // strip whose outline meets it at both ends (an arch's crown) is finished at one end
+        // after all its loops, then at the other, and no order avoids going between them.
         for r in rep.rewrites.iter().filter(|r| !r.gradual) {
+            let beyond = r.inner_travel_mm - r.longest_inner_travel_mm;
             assert!(
-                r.inner_travel_mm <= 0.10 * r.written_length_mm,
-                "{what}: region {}: {:.1} mm of travel between loops for {:.1} mm of them",
+                beyond <= 0.10 * r.written_length_mm,
+                "{what}: region {}: {:.1} mm of travel between loops (the longest {:.1} left out) for {:.1} mm of them",
                 r.region,
-                r.inner_travel_mm,
+                beyond,
+                r.longest_inner_travel_mm,
                 r.written_length_mm
             );
         }
@@ -144,9 +146,8 @@ fn judge_with(name: &str, args: &[&str]) -> Vec<(String, CheckReport, CheckRepor
             before.time_s,
             after.time_s
         );
-        out.push((what, before, after));
+        (what, before, after)
     }
-    out
 }
 
 #[test]
@@ -191,6 +192,47 @@ fn a_sphere_underside_is_held_up_layer_by_layer() {
                     b.in_air_mm
                 );
             }
+        }
+    }
+}
+
+#[test]
+fn an_arch_and_a_hole_ceiling_are_held_up_to_their_crown() {
+    // Near the crown each layer hangs more than a bead past the one below: a thin strip
+    // with no room for a contour, where one half-width loop left the moved perimeter
+    // hanging (Cura, 0.5 mm lines at 0.28 mm: 11.4 mm in air on one layer).
+    let mut judged = judge("arch_hole");
+    let cr10 = [
+        "layer_height=0.28",
+        "infill_sparse_thickness=0.28",
+        "line_width=0.5",
+        "wall_line_width=0.5",
+        "wall_line_width_0=0.5",
+        "wall_line_width_x=0.5",
+        "infill_line_width=0.5",
+        "skin_line_width=0.5",
+        "wall_line_count=2",
+    ];
+    if let Some(d) = slice_cura(&part("arch_hole"), "creality_cr10", &cr10) {
+        judged.push(judge_one("arch_hole by Cura (CR-10)".into(), &d));
+    }
+    for (what, before, after) in judged {
+        held_up(&what, &before, &after, 10.0);
+    }
+}
+
+/// Every layer the slicer left more than `over` mm in air has at most 1 mm left.
+fn held_up(what: &str, before: &CheckReport, after: &CheckReport, over: f64) {
+    for (b, a) in before.layers.iter().zip(&after.layers) {
+        if b.in_air_mm > over {
+            assert!(
+                a.in_air_mm <= 1.0,
+                "{what}: layer {} (Z {}) {:.1} mm in air, {:.1} before",
+                b.layer,
+                b.z,
+                a.in_air_mm,
+                b.in_air_mm
+            );
         }
     }
 }
