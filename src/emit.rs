@@ -151,6 +151,10 @@ impl Tags {
 /// Layers kept for what the next layers rest on ([`PoaPass::keep_below`]).
 const KEEP_BELOW: usize = 8;
 
+/// How far the area a rewritten layer is planned to print may reach past what it prints as
+/// read back (mm): the two differ by the rounding of arcs and E.
+const REREAD_SLACK: f64 = 0.02;
+
 /// Layers whose external perimeter width [`PoaPass::width_on`] takes the median of.
 const WALL_WIDTH_LAYERS: usize = 32;
 
@@ -1656,6 +1660,19 @@ impl PoaPass<'_> {
             );
             self.account(layer, &bytes, stats);
             self.reread = reread(layer, &bytes, &self.config);
+            // The layer above is planned on what this layer prints as written: the area
+            // made from the plan alone keeps, in places, the slicer's perimeter that the
+            // splice took out (an edge a loop above then grew from, in air).
+            if let (Some((i, area)), Some(r)) = (&self.rewritten_below, &self.reread) {
+                if *i == layer.index {
+                    let printed = crate::geometry::printed_area(r, &self.opts.detect.area);
+                    let area = crate::geometry::intersection(
+                        area,
+                        &crate::geometry::offset(&printed, REREAD_SLACK),
+                    );
+                    self.rewritten_below = Some((*i, area));
+                }
+            }
             Some(bytes)
         };
         self.limits.track_limits(&layer.raw);

@@ -280,7 +280,11 @@ pub fn plan(
         };
     }
 
-    let near_below = offset(&below_loc, w / 2.0);
+    // The contour runs inside the perimeter all along the outline; only the side of the
+    // loop area that follows the wall below is left out. (Leaving out all within half a
+    // width of the wall below cut the contour to pieces on a strip about as wide as that,
+    // a sphere's ring next to the equator, and the perimeter hung between them.)
+    let near_below = offset(&below_loc, w / 8.0);
     let contour = clip_lines(&rings(&inner), &near_below, false);
 
     // Fronts grow inside the zone only (a geodesic offset): past a hole in the region they

@@ -179,7 +179,22 @@ fn the_paper_shapes_sliced_by_both() {
 
 #[test]
 fn a_sphere_underside_is_held_up_layer_by_layer() {
-    for (what, before, after) in judge("sphere_stem") {
+    let mut judged = judge("sphere_stem");
+    // Cura's adaptive layers and 0.28 mm layers: each layer's ring a bead wide or more near
+    // the equator, where the layer above a moved perimeter once came out worse (an adaptive
+    // slice: 0 -> 3.8 mm in air on one layer) and a ring wider than a bead kept 14 mm in air.
+    for (name, settings) in [
+        ("adaptive", &["adaptive_layer_height_enabled=true"][..]),
+        (
+            "0.28 mm",
+            &["layer_height=0.28", "infill_sparse_thickness=0.28"][..],
+        ),
+    ] {
+        if let Some(d) = slice_cura(&part("sphere_stem"), "prusa_i3_mk3", settings) {
+            judged.push(judge_one(format!("sphere_stem by Cura ({name})"), &d));
+        }
+    }
+    for (what, before, after) in judged {
         // The underside: the ball (radius 10, bottom at Z 8) below its 12 mm level.
         for (b, a) in before.layers.iter().zip(&after.layers) {
             if b.z > 8.0 && b.z < 12.0 && b.in_air_mm > 5.0 {
