@@ -75,6 +75,19 @@ impl SlicerConfig {
                 self.values
                     .entry("gcode_flavor".to_string())
                     .or_insert_with(|| v.trim().to_string());
+            } else if let Some(v) = rest
+                .strip_prefix("EXTRUDER_TRAIN.0.NOZZLE.DIAMETER:")
+                .or_else(|| rest.strip_prefix("EXTRUDER_TRAIN.0.MATERIAL.DIAMETER:"))
+            {
+                // Cura's Griffin header (Ultimaker S-line, UM3).
+                let key = if rest.contains("NOZZLE") {
+                    "nozzle_diameter"
+                } else {
+                    "filament_diameter"
+                };
+                self.values
+                    .entry(key.to_string())
+                    .or_insert_with(|| v.trim().to_string());
             } else if let Some(v) = rest.strip_prefix("Layer height:") {
                 self.values
                     .insert("layer_height".to_string(), v.trim().to_string());
@@ -125,10 +138,22 @@ impl SlicerConfig {
         }
     }
 
+    /// The filament diameter the file's E is measured in: as stated, else 2.85 mm for Cura's
+    /// Griffin flavour (Ultimaker's printers, which take no other; the header names the
+    /// nozzle but not the filament), else 1.75 mm.
     pub fn filament_diameter(&self) -> f64 {
         self.number("filament_diameter")
             .filter(|d| (0.5..=5.0).contains(d))
-            .unwrap_or(1.75)
+            .unwrap_or_else(|| {
+                if self
+                    .get("gcode_flavor")
+                    .is_some_and(|f| f.trim().eq_ignore_ascii_case("griffin"))
+                {
+                    2.85
+                } else {
+                    1.75
+                }
+            })
     }
 
     pub fn nozzle_diameter(&self) -> f64 {
@@ -332,6 +357,20 @@ mod tests {
         let c = SlicerConfig::parse(b";   filamentDiameters,1.75|1.75\n;Layer height: 0.15\n");
         assert_eq!(c.layer_height(), Some(0.15));
         assert_eq!(c.filament_diameter(), 1.75);
+    }
+
+    /// Cura's Griffin header (Ultimaker S5) names the nozzle, not the filament: 2.85 mm is
+    /// the only filament those printers take (1.75 made poa's loops 1.64 x too heavy).
+    #[test]
+    fn cura_griffin_header_means_2_85_mm_filament() {
+        let head = b";START_OF_HEADER\n;FLAVOR:Griffin\n;EXTRUDER_TRAIN.0.NOZZLE.DIAMETER:0.6\n";
+        let c = SlicerConfig::parse(head);
+        assert_eq!(c.filament_diameter(), 2.85);
+        assert_eq!(c.nozzle_diameter(), 0.6);
+        let stated = SlicerConfig::parse(b";FLAVOR:Griffin\n; filament_diameter = 1.75\n");
+        assert_eq!(stated.filament_diameter(), 1.75);
+        let marlin = SlicerConfig::parse(b";FLAVOR:Marlin\n");
+        assert_eq!(marlin.filament_diameter(), 1.75);
     }
 
     #[test]

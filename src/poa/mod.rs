@@ -80,6 +80,10 @@ pub struct Widths {
     pub perimeter_width: f64,
     /// Region detection tolerance (distance from sectA that still counted as supported).
     pub tolerance: f64,
+    /// The slicer prints the external perimeter before the inner walls beside it (Cura's
+    /// `outer_inset_first`, PrusaSlicer's `external_perimeters_first`): a gradual
+    /// overhang's moved perimeter has only the layer below and the loops to rest on.
+    pub outer_first: bool,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -133,6 +137,10 @@ const HALF_LOOP_AT: f64 = 0.35;
 /// between the two rests on 70 % of its width and sets fine, and a tighter mark scatters
 /// short loop pieces (each with its travel) round every faceted cone at 60 degrees.
 const NEAR_LOOP_AT: f64 = 0.2;
+/// [`NEAR_LOOP_AT`] where the external perimeter is printed before the inner walls: loop 1
+/// where the perimeter would hang a quarter width past the layer below, the check's mark
+/// (Cura with `outer_inset_first`: a dome's underside 120.8 -> 82.6 mm in air at 0.2).
+const NEAR_LOOP_AT_OUTER_FIRST: f64 = 0.15;
 /// How much nearer the loop before (in widths) a half-width loop of a thin ring lies than a
 /// full one: at a full step its narrower bead would only just touch the loop before.
 const HALF_BACK: f64 = 0.05;
@@ -226,13 +234,17 @@ pub fn plan(
         // almost under the perimeter). The perimeter is then less than 0.8 w from the last
         // loop's centre, within 0.3 w of its edge, where a strip wider than a bead (an
         // arch's last layers, a sphere near its equator) once left it hanging.
-        let near_room = intersection(&zone, &offset(&perimeter_area, -NEAR_LOOP_AT * w));
+        // Where the inner walls come after the perimeter, the deposition check's own mark
+        // (a quarter width): nothing printed before holds the perimeter's inner side.
+        let near_at = if widths.outer_first {
+            NEAR_LOOP_AT_OUTER_FIRST
+        } else {
+            NEAR_LOOP_AT
+        };
+        let near_room = intersection(&zone, &offset(&perimeter_area, -near_at * w));
         let full_room = offset(&perimeter_area, -HALF_LOOP_AT * w);
         // Where a half-width loop goes, measured where the full one would lie.
-        let near_half = intersection(
-            &zone,
-            &offset(&perimeter_area, -(NEAR_LOOP_AT + HALF_BACK) * w),
-        );
+        let near_half = intersection(&zone, &offset(&perimeter_area, -(near_at + HALF_BACK) * w));
         let extent =
             geo::BoundingRect::bounding_rect(&zone).map_or(0.0, |b| b.width().hypot(b.height()));
         let mut at = start;
@@ -254,19 +266,23 @@ pub fn plan(
                 width,
             };
             let before = strands.len();
-            let full = clip_lines(&pieces, &full_room, true);
-            // A half-width loop bites into the loop before it as deep for its width as a
-            // full one: [`HALF_BACK`] widths nearer it.
-            let half_ring = rings(&offset(
-                &below_loc,
-                k as f64 * step - w / 2.0 - HALF_BACK * w,
-            ));
-            let half = clip_lines(&clip_lines(&half_ring, &near_half, true), &full_room, false);
-            // Pieces shorter than two widths are where the perimeter only just passes the
-            // mark (faceted walls): each costs a travel, and the perimeter there is within
-            // reach of what holds it anyway.
-            strands.extend(shape(w).strands(full, 2.0 * w, &mut at));
-            strands.extend(shape(w / 2.0).strands(half, 2.0 * w, &mut at));
+            // Full width where most of the ring lies well inside the perimeter, half width
+            // (a little nearer the loop before it, [`HALF_BACK`]) where most lies close
+            // under it: decided for the whole ring, since a faceted wall puts a ring near
+            // the mark in and out of it every few millimetres, and pieces that short were
+            // dropped, leaving no loop at all.
+            let length = |v: &[Polyline]| v.iter().map(|p| polyline_length(p)).sum::<f64>();
+            let inside_full = length(&clip_lines(&pieces, &full_room, true));
+            if inside_full >= 0.5 * length(&pieces) {
+                strands.extend(shape(w).strands(pieces, 2.0 * w, &mut at));
+            } else {
+                let half_ring = rings(&offset(
+                    &below_loc,
+                    k as f64 * step - w / 2.0 - HALF_BACK * w,
+                ));
+                let half = clip_lines(&half_ring, &near_half, true);
+                strands.extend(shape(w / 2.0).strands(half, 2.0 * w, &mut at));
+            }
             if strands.len() > before {
                 loops = k;
             }
@@ -789,6 +805,7 @@ mod tests {
             loop_width: W,
             perimeter_width: W,
             tolerance: W / 2.0,
+            outer_first: false,
         };
         let step = (1.0 - overlap) * W;
         let uncovered = difference(&area, &below);
@@ -961,6 +978,7 @@ mod tests {
             loop_width: W,
             perimeter_width: W,
             tolerance: W / 2.0,
+            outer_first: false,
         };
         let settings = PoaSettings::default();
         let plan = plan(
@@ -1013,6 +1031,7 @@ mod tests {
             loop_width: W,
             perimeter_width: W,
             tolerance: W / 2.0,
+            outer_first: false,
         };
         let zone = difference(&shelf, &below);
         let plan = super::plan(
@@ -1064,6 +1083,7 @@ mod tests {
             loop_width: W,
             perimeter_width: W,
             tolerance: W / 2.0,
+            outer_first: false,
         };
         type Case = (
             MultiPolygon<f64>,

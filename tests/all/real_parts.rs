@@ -189,6 +189,12 @@ fn a_sphere_underside_is_held_up_layer_by_layer() {
             "0.28 mm",
             &["layer_height=0.28", "infill_sparse_thickness=0.28"][..],
         ),
+        // The outer wall before the inner ones: the moved perimeter has only the layer
+        // below and the loops to rest on (a dome by Cura this way kept 33.6 mm in air).
+        (
+            "outer wall first",
+            &["outer_inset_first=true", "wall_line_count=4"][..],
+        ),
     ] {
         if let Some(d) = slice_cura(&part("sphere_stem"), "prusa_i3_mk3", settings) {
             judged.push(judge_one(format!("sphere_stem by Cura ({name})"), &d));
@@ -209,6 +215,36 @@ fn a_sphere_underside_is_held_up_layer_by_layer() {
             }
         }
     }
+}
+
+/// An Ultimaker S5 slice (Cura's Griffin flavour, 2.85 mm filament the header does not
+/// state): poa reads E as 2.85 mm filament. Taken as 1.75 mm, its loops came out 1.64 x too
+/// heavy and the deposition check saw 100 times the air.
+#[test]
+fn an_ultimaker_s5_slice_is_read_as_2_85_mm_filament() {
+    let Some(d) = slice_cura(
+        &part("rect_overhang"),
+        "ultimaker_s5",
+        &["material_diameter=2.85", "layer_height=0.2"],
+    ) else {
+        return;
+    };
+    assert_eq!(SlicerConfig::parse(&d).filament_diameter(), 2.85);
+    let (what, before, after) = judge_one("rect_overhang by Cura (Ultimaker S5)".into(), &d);
+    assert!(after.in_air_mm < 0.01 * before.in_air_mm, "{what}");
+    // The walls read at their sliced width (0.4 mm nozzle), not 1.64 x wider.
+    let mut walls: Vec<f64> = all_layers(&d)
+        .iter()
+        .flat_map(|l| l.paths.iter())
+        .filter(|p| p.role == printonair::layers::Role::ExternalPerimeter)
+        .map(|p| p.width)
+        .collect();
+    walls.sort_by(f64::total_cmp);
+    let median = walls[walls.len() / 2];
+    assert!(
+        median > 0.3 && median < 0.55,
+        "{what}: walls {median:.2} mm wide"
+    );
 }
 
 #[test]

@@ -381,6 +381,13 @@ pub fn slice_cura(stl: &Path, machine: &str, settings: &[&str]) -> Option<Vec<u8
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("out.gcode");
     let mut cmd = std::process::Command::new("CuraEngine");
+    // Machines with extruder trains of their own (Ultimaker S5) find them beside the
+    // definitions.
+    let extruders = defs.with_file_name("extruders");
+    if extruders.is_dir() {
+        let paths = std::env::join_paths([defs.as_path(), extruders.as_path()]).unwrap();
+        cmd.env("CURA_ENGINE_SEARCH_PATH", paths);
+    }
     cmd.arg("slice")
         .arg("-j")
         .arg(defs.join(format!("{machine}.def.json")));
