@@ -323,11 +323,24 @@ pub fn area_from_footprint(
                 .filter(|p| matches!(p.role, Role::ExternalPerimeter | Role::OverhangPerimeter))
                 .collect();
             let inside = midpoints(layer, interior);
+            // Islands that may stand in another's hole (a post inside a ring): their own
+            // infill says nothing about the hole round them.
+            let islands: Vec<(geo::Rect<f64>, Polygon<f64>)> =
+                if fp.0.len() >= 2 && fp.0.iter().any(|q| !q.interiors().is_empty()) {
+                    fp.0.iter()
+                        .filter_map(|q| {
+                            let b = q.exterior().bounding_rect()?;
+                            Some((b, Polygon::new(q.exterior().clone(), Vec::new())))
+                        })
+                        .collect()
+                } else {
+                    Vec::new()
+                };
             // Most layers have no hole that the infill test leaves undecided: build the wall
             // zone only for the first one that needs it.
             let mut wall_fp: Option<Located> = None;
             let area = close_holes(fp, |hole| {
-                contains_any(hole, &inside)
+                contains_own(hole, &inside, &islands)
                     || hole_width_below(hole, opts.min_hole)
                     || !walled_by(hole, wall_fp.get_or_insert_with(|| wall_zone(&walls)))
             });
@@ -432,6 +445,49 @@ fn contains_any(hole: &LineString<f64>, points: &[[f64; 2]]) -> bool {
     candidates
         .iter()
         .any(|p| p[1] >= bb.min().y && p[1] <= bb.max().y && poly.contains(&Point::new(p[0], p[1])))
+}
+
+/// [`contains_any`] leaving out the points inside an island that stands in the hole: the
+/// hole round a post inside a ring (a torus on its post, a pin in a cup) is air, though the
+/// post's infill lies within its edge.
+fn contains_own(
+    hole: &LineString<f64>,
+    points: &[[f64; 2]],
+    islands: &[(geo::Rect<f64>, Polygon<f64>)],
+) -> bool {
+    let Some(hb) = hole.bounding_rect() else {
+        return false;
+    };
+    let within = |b: &geo::Rect<f64>| {
+        b.min().x >= hb.min().x
+            && b.max().x <= hb.max().x
+            && b.min().y >= hb.min().y
+            && b.max().y <= hb.max().y
+    };
+    let hole_poly = Polygon::new(hole.clone(), Vec::new());
+    let nested: Vec<&Polygon<f64>> = islands
+        .iter()
+        .filter(|(b, q)| {
+            within(b)
+                && q.exterior()
+                    .0
+                    .first()
+                    .is_some_and(|c| hole_poly.contains(&Point::new(c.x, c.y)))
+        })
+        .map(|(_, q)| q)
+        .collect();
+    if nested.is_empty() {
+        return contains_any(hole, points);
+    }
+    let from = points.partition_point(|p| p[0] < hb.min().x);
+    let to = points.partition_point(|p| p[0] <= hb.max().x);
+    points[from..to.max(from)].iter().any(|p| {
+        let q = Point::new(p[0], p[1]);
+        p[1] >= hb.min().y
+            && p[1] <= hb.max().y
+            && hole_poly.contains(&q)
+            && !nested.iter().any(|n| n.contains(&q))
+    })
 }
 
 /// Where an external perimeter's inner edge can be: its footprint grown by a margin.
@@ -695,5 +751,29 @@ mod tests {
         // 1.45 mm square with corners rounded by 0.225 mm; its 0.55 mm eye is closed.
         let island = 1.45 * 1.45 - (4.0 - std::f64::consts::PI) * 0.225 * 0.225;
         assert!((b - a - island).abs() < 0.05, "{b}");
+    }
+
+    #[test]
+    fn the_hole_round_a_post_with_infill_stays_open() {
+        // A ring (a torus' first layers) round a post of its own, the post filled with
+        // infill: the post's infill lies in the ring's hole but says nothing about it (it
+        // was closed, and loops grew across the gap from the post).
+        let mut paths = vec![
+            square_loop(Role::ExternalPerimeter, 0.225, 0.225, 29.775, 29.775),
+            square_loop(Role::ExternalPerimeter, 4.775, 4.775, 25.225, 25.225),
+            square_loop(Role::Perimeter, 0.65, 0.65, 29.35, 29.35),
+            square_loop(Role::Perimeter, 4.35, 4.35, 25.65, 25.65),
+            path(Role::Infill, 0.45, &[[1.0, 1.0], [3.9, 3.9]]),
+            // The post: 10 x 10 in the middle, two walls and infill.
+            square_loop(Role::ExternalPerimeter, 10.225, 10.225, 19.775, 19.775),
+            square_loop(Role::Perimeter, 10.65, 10.65, 19.35, 19.35),
+        ];
+        let ring = printed_area(&layer(paths.clone()), &AreaOptions::default()).unsigned_area();
+        paths.push(path(Role::Infill, 0.45, &[[11.0, 11.0], [19.0, 19.0]]));
+        paths.push(path(Role::Infill, 0.45, &[[11.0, 19.0], [19.0, 11.0]]));
+        let with_infill = printed_area(&layer(paths), &AreaOptions::default()).unsigned_area();
+        // Ring 900 - 400 = 500 mm2, post 100 mm2: the gap between them (300 mm2) stays open.
+        assert!((ring - 600.0).abs() < 1.5, "{ring}");
+        assert!((with_infill - ring).abs() < 1.5, "{with_infill} vs {ring}");
     }
 }
