@@ -162,6 +162,14 @@ impl SlicerConfig {
             .unwrap_or(0.4)
     }
 
+    /// How far the first layer is drawn in from the outline (PrusaSlicer's
+    /// `elefant_foot_compensation`, mm); 0 when unset or out of range.
+    pub fn elephant_foot(&self) -> f64 {
+        self.number("elefant_foot_compensation")
+            .filter(|v| (0.0..=2.0).contains(v))
+            .unwrap_or(0.0)
+    }
+
     pub fn layer_height(&self) -> Option<f64> {
         self.number("layer_height").filter(|h| *h > 0.0 && *h < 5.0)
     }

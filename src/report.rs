@@ -372,6 +372,7 @@ pub fn still_unsupported(path: &std::path::Path) -> crate::error::Result<Option<
 pub fn detect_options(config: &SlicerConfig) -> DetectOptions {
     DetectOptions {
         external_width: config.external_perimeter_width(),
+        first_layer_shrink: config.elephant_foot(),
         ..Default::default()
     }
 }

@@ -459,6 +459,7 @@ impl Effective {
     pub fn detect_options(&self, config: &SlicerConfig) -> DetectOptions {
         let mut o = DetectOptions {
             external_width: config.external_perimeter_width(),
+            first_layer_shrink: config.elephant_foot(),
             ..Default::default()
         };
         if let Some(t) = self.number("tolerance") {

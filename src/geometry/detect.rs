@@ -177,6 +177,8 @@ where
     // heights interleave); and the support of the last layer handed on.
     let mut hist: VecDeque<(usize, Option<MultiPolygon<f64>>)> = VecDeque::new();
     let mut multi = false;
+    // The first layers (on the bed) seen so far, by index.
+    let mut on_bed: Vec<usize> = Vec::new();
     let mut below_support: Option<Support> = None;
     let mut last: Option<(Strands, MultiPolygon<f64>)> = None;
     // The last layer read is held back until the next one's proof is known.
@@ -249,7 +251,19 @@ where
             1
         };
         for (p, a) in batch.iter().zip(&areas) {
-            belows.push(below_of(&p.layer, &hist));
+            let below = below_of(&p.layer, &hist);
+            // The layer on the first one stands on the first layer squashed out to the
+            // outline the slicer drew it in from.
+            let on_first = opts.first_layer_shrink > 0.0
+                && p.layer.rests_on.iter().any(|i| on_bed.contains(i));
+            belows.push(if on_first {
+                below.map(|b| super::offset(&b, opts.first_layer_shrink))
+            } else {
+                below
+            });
+            if p.layer.on_bed() && on_bed.len() < 16 {
+                on_bed.push(p.layer.index);
+            }
             if p.layer.kind == LayerKind::Layer {
                 if hist.len() >= keep {
                     hist.drain(..=hist.len() - keep);

@@ -62,6 +62,10 @@ pub struct DetectOptions {
     /// Try [`super::proof::supported`] before the polygon work (the results are the same
     /// either way; off only to check that).
     pub prove: bool,
+    /// How much the slicer drew the first layer in from the part's outline (mm; PrusaSlicer's
+    /// `elefant_foot_compensation`): the first layer squashes out to the outline, so the
+    /// layer on it is judged against its area grown by this much.
+    pub first_layer_shrink: f64,
 }
 
 impl Default for DetectOptions {
@@ -73,6 +77,7 @@ impl Default for DetectOptions {
             external_width: 0.45,
             area: AreaOptions::default(),
             prove: true,
+            first_layer_shrink: 0.0,
         }
     }
 }

@@ -207,3 +207,37 @@ fn over_air_extrusion_is_reported() {
     assert_eq!(rep.summary.over_air_length_mm, r.over_air_length_mm);
     assert_eq!(r.object.as_deref(), Some("rect_overhang.stl id:0 copy 0"));
 }
+
+/// A 0.25 mm nozzle with PrusaSlicer's elephant-foot compensation (0.2 mm, more than the
+/// tolerance of 0.135 mm there): the first layer is drawn in from the outline and squashes
+/// out to it, so the second layer is no overhang (it was, on every part, and its wall was
+/// pulled in for nothing).
+#[test]
+fn the_layer_on_an_elephant_foot_compensated_first_layer_is_no_overhang() {
+    for s in &SPECIMENS[..1] {
+        let Some(data) = slice(
+            s.name,
+            &[
+                "--nozzle-diameter",
+                "0.25",
+                "--extrusion-width",
+                "0.27",
+                "--external-perimeter-extrusion-width",
+                "0.27",
+                "--perimeter-extrusion-width",
+                "0.27",
+                "--first-layer-extrusion-width",
+                "0.27",
+                "--layer-height",
+                "0.08",
+                "--first-layer-height",
+                "0.15",
+                "--elefant-foot-compensation",
+                "0.2",
+            ],
+        ) else {
+            return;
+        };
+        check(s, &data, "0.25 mm nozzle, elephant foot 0.2 mm");
+    }
+}
