@@ -156,6 +156,16 @@ impl SlicerConfig {
             })
     }
 
+    /// Whether the 1.75 mm of [`SlicerConfig::filament_diameter`] is a guess: the file (or
+    /// the environment) states no diameter, nor is E volumetric or Cura's Griffin flavour.
+    pub fn filament_diameter_unstated(&self) -> bool {
+        self.number("filament_diameter")
+            .filter(|d| (0.5..=5.0).contains(d))
+            .is_none()
+            && !self.volumetric_e()
+            && self.filament_diameter() == 1.75
+    }
+
     pub fn nozzle_diameter(&self) -> f64 {
         self.number("nozzle_diameter")
             .filter(|d| (0.05..=3.0).contains(d))

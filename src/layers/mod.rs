@@ -323,6 +323,10 @@ struct State {
     recent: VecDeque<(usize, f64)>,
     /// The interpreter's state before the line being handled (kept only with `keep_raw`).
     before_line: Machine,
+    /// The nozzle diameter, where the file states no filament diameter (E is then read as
+    /// 1.75 mm filament): the external perimeters' widths are sampled against it.
+    unstated_filament: Option<f64>,
+    wall_samples: Vec<f64>,
 }
 
 impl<R: BufRead> LayerReader<R> {
@@ -446,6 +450,10 @@ impl State {
             estimator: None,
             keep_raw: options.keep_raw,
             filament_area: cfg.e_area(),
+            unstated_filament: cfg
+                .filament_diameter_unstated()
+                .then(|| cfg.nozzle_diameter()),
+            wall_samples: Vec::new(),
             config_layer_height: cfg.layer_height(),
             markers_promised: producer
                 .as_ref()
@@ -972,6 +980,43 @@ impl State {
         self.ready.extend(self.held.drain(..));
     }
 
+    /// Samples the external perimeters' widths (layers above the first) where the file
+    /// states no filament diameter, and notes once when they read as beads far narrower
+    /// than the nozzle makes: the file's E is most likely in 2.85 mm filament (Lulzbot,
+    /// older Ultimakers), and poa's loops would come out 2.65 times too heavy.
+    fn sample_walls(&mut self, paths: &[Path], line: u64) {
+        const SAMPLES: usize = 64;
+        let Some(nozzle) = self.unstated_filament else {
+            return;
+        };
+        if self.wall_samples.len() >= SAMPLES {
+            return;
+        }
+        self.wall_samples.extend(
+            paths
+                .iter()
+                .filter(|p| p.role == Role::ExternalPerimeter && p.length() > 1.0)
+                .map(|p| p.width)
+                .filter(|w| w.is_finite())
+                .take(SAMPLES - self.wall_samples.len()),
+        );
+        if self.wall_samples.len() < SAMPLES {
+            return;
+        }
+        let mut w = self.wall_samples.clone();
+        w.sort_by(f64::total_cmp);
+        let median = w[w.len() / 2];
+        // 2.85 mm filament read as 1.75 gives a 2.65 times smaller cross-section: walls
+        // about 0.4 of the nozzle wide, where slicers make them 0.8 to 1.5 times it.
+        if median < 0.55 * nozzle {
+            self.diagnostics.add("filament-diameter", line, || {
+                format!(
+                    "the file states no filament diameter and its walls read {median:.2} mm wide at 1.75 mm (nozzle {nozzle} mm): if the printer takes 2.85 mm filament, set SLIC3R_FILAMENT_DIAMETER=2.85"
+                )
+            });
+        }
+    }
+
     fn complete(&mut self, b: Builder) -> Layer {
         let is_layer = b.kind == LayerKind::Layer;
         let z = b
@@ -1017,6 +1062,9 @@ impl State {
             }
         }
         let index = self.next_index;
+        if is_layer && index >= 1 {
+            self.sample_walls(&paths, b.last_line);
+        }
         let mut rests = Vec::new();
         if is_layer {
             rests = rests_on(&self.recent, z, reach);

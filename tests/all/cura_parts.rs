@@ -173,3 +173,27 @@ fn ultigcode_counts_e_in_cubic_millimetres() {
     assert!(before.in_air_mm > 1000.0, "{}", before.in_air_mm);
     assert!(after.in_air_mm < 2.0, "{}", after.in_air_mm);
 }
+
+/// A Cura file for a 2.85 mm filament printer of Marlin flavour states no diameter: poa
+/// reads E as 1.75 mm filament, and says so where the walls then read far narrower than
+/// the nozzle makes (a 1.75 mm file says nothing).
+#[test]
+fn an_unstated_2_85_mm_filament_is_pointed_out() {
+    let dir = tempfile::tempdir().unwrap();
+    for (diameter, noted) in [("2.85", true), ("1.75", false)] {
+        let setting = format!("material_diameter={diameter}");
+        let Some(d) = slice_cura(&part("rect_overhang"), "creality_ender3", &[&setting]) else {
+            return;
+        };
+        let f = dir.path().join(format!("d{diameter}.gcode"));
+        std::fs::write(&f, &d).unwrap();
+        let o = poa().arg("info").arg(&f).output().unwrap();
+        assert!(o.status.success());
+        let text = String::from_utf8_lossy(&o.stdout);
+        assert_eq!(
+            text.contains("SLIC3R_FILAMENT_DIAMETER=2.85"),
+            noted,
+            "{diameter} mm: {text}"
+        );
+    }
+}
