@@ -224,6 +224,14 @@ pub fn plan(
         let biting = intersection(&perimeter_area, &front);
         let limit = offset(&area_loc, -(we / 2.0 + inset + w / 8.0));
         perimeter_area = union(&biting, &limit);
+    } else if inset > 0.0 {
+        // The inset puts the perimeter on the loops; where the zone has no room for them (a
+        // region's thin arm along a flared wall) it only takes the perimeter off what the
+        // layer above was sliced on (a hull's sides: the layer above 23.6 -> 52.2 mm in
+        // air): there the perimeter stays where the slicer put it.
+        let plain = offset(&offset(&area_loc, -(we / 2.0 + round)), round);
+        let by_loops = offset(&inner, contour_at + w);
+        perimeter_area = union(&perimeter_area, &difference(&plain, &by_loops));
     }
     let perimeter = clip_lines(&rings(&perimeter_area), &zone, true);
     if thin {
