@@ -335,7 +335,11 @@ pub fn plan(
             .into_iter()
             .filter(|p| polyline_length(p) >= w / 2.0)
             .collect();
-        if pieces.is_empty() && !loops.is_empty() {
+        // Fronts end where the zone is filled: after a loop, the first front with nothing
+        // left to print. The first fronts of an arm anchored only at its end may be slivers
+        // too small to print: the growth goes on through them (it stopped after two, and
+        // one of a cylinder's two identical wings got no loop at all).
+        if pieces.is_empty() && loops.iter().any(|l| !l.is_empty()) {
             break;
         }
         loops.push(pieces);

@@ -286,6 +286,37 @@ fn a_hull_side_keeps_the_outline_the_layer_above_stands_on() {
     }
 }
 
+/// A horizontal cylinder on a post: its first layers are two wings anchored only at the
+/// post, whose first fronts are slivers too small to print. Both wings get their loops (the
+/// growth stopped after two empty fronts: one wing of a Cura slice got none, and the layer
+/// kept 31 mm in air).
+#[test]
+fn both_wings_of_a_cylinder_on_a_post_get_loops() {
+    // (Not judged whole: a wing's loops are short strokes across it, and the hops between
+    // them are more than a tenth of their length; see the closing notes.)
+    let settings = [
+        "layer_height=0.12",
+        "infill_sparse_thickness=0.12",
+        "wall_line_count=3",
+        "infill_pattern=triangles",
+    ];
+    let Some(d) = slice_cura(&part("t_cylinders"), "prusa_i3_mk3", &settings) else {
+        return;
+    };
+    let (new, rep) = rewrite(&d, BridgeMode::Keep);
+    assert!(
+        rep.rewrites.iter().all(|r| r.loops > 0 || r.gradual),
+        "{:?}",
+        rep.rewrites
+    );
+    held_up(
+        "t_cylinders by Cura (0.12 mm)",
+        &check(&d),
+        &check(&new),
+        20.0,
+    );
+}
+
 #[test]
 fn an_arch_and_a_hole_ceiling_are_held_up_to_their_crown() {
     // Near the crown each layer hangs more than a bead past the one below: a thin strip
