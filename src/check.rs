@@ -7,7 +7,8 @@
 //! Model: strands are deposited in file order. A strand's bead is as wide as its E makes it
 //! (flow model at its height), whatever a comment says. A point of a strand is supported when
 //! material deposited before it (the layer below, or earlier strands of this layer, not the
-//! strand's own last two widths of path) lies within `(0.5 - overlap_min) x width` of it.
+//! strand's own last two widths of path unless the path has turned back since) lies within
+//! `(0.5 - overlap_min) x width` of it.
 //! Unsupported runs are *bridged* when supported points bound them on both sides and they span
 //! at most `max_bridge` mm, else *in air*. Density = extruded volume / footprint area / height
 //! (about 1.0 for a normal layer).
@@ -55,6 +56,21 @@ impl Seg {
         let (_, c) = nearest_on_segment(p, self.a, self.b);
         (c[0] - p[0]).hypot(c[1] - p[1])
     }
+}
+
+/// Whether the path's own recent segment `o` holds the point `p` of the segment `a`-`b`
+/// because the path turned back since laying it (headings more than 120 degrees apart): a
+/// stroke laid back beside the one before it, joined to it by a short connector, rests on it
+/// as it would after a travel. Only the bead's own trailing tail (same heading) waits the
+/// two widths.
+fn turned_back(o: &Seg, a: [f64; 2], b: [f64; 2], p: [f64; 2], reach: f64) -> bool {
+    let (u, v) = (
+        [o.b[0] - o.a[0], o.b[1] - o.a[1]],
+        [b[0] - a[0], b[1] - a[1]],
+    );
+    let dot = u[0] * v[0] + u[1] * v[1];
+    let norms = u[0].hypot(u[1]) * v[0].hypot(v[1]);
+    dot < -0.5 * norms && o.distance(p) - o.half <= reach
 }
 
 /// Segments bucketed on a dense square grid over a fixed box, for nearby queries. Segments
@@ -348,7 +364,8 @@ impl EndSupport {
             let reach = (0.5 - opts.overlap_min) * w;
             let held = self.grid.near(p, reach, &mut hint)
                 || segs[..i].iter().any(|o| {
-                    at - (o.start + o.len) >= 2.0 * w && o.seg.distance(p) - o.seg.half <= reach
+                    (at - (o.start + o.len) >= 2.0 * w && o.seg.distance(p) - o.seg.half <= reach)
+                        || turned_back(&o.seg, s.a, s.b, p, reach)
                 });
             (at, held)
         };
@@ -541,7 +558,9 @@ pub fn check_layer(
                         break;
                     }
                 }
-                let ok = on_bed || grid.near(p, reach, &mut last);
+                let ok = on_bed
+                    || grid.near(p, reach, &mut last)
+                    || own.iter().any(|(_, o)| turned_back(o, a, b, p, reach));
                 samples.push((
                     s_here,
                     Sample {
@@ -762,6 +781,62 @@ mod tests {
         let back = strand(vec![[11.3, 3.0], [2.0, 3.0]], 0.45);
         let (head, tail) = sup.dangling(&back, 5.0).unwrap();
         assert!(head > 1.0 && head < 1.4 && tail == 0.0, "{head} {tail}");
+    }
+
+    #[test]
+    fn strokes_laid_back_and_forth_as_one_path_rest_on_each_other() {
+        // Strokes across a gap 1.3 mm long, 0.27 mm apart, from a line below at Y 0; joined
+        // by extruded connectors into one path, as they rest on each other joined by travels.
+        let fa = filament_area(1.75);
+        let below = layer(1, vec![strand(vec![[0.0, 0.0], [10.0, 0.0]], 0.45)]);
+        let mut zigzag = vec![[0.0, 0.0], [1.3, 0.0]];
+        let mut strokes = vec![strand(vec![[0.0, 0.0], [1.3, 0.0]], 0.45)];
+        for k in 1..12 {
+            let y = 0.27 * k as f64;
+            let (a, b) = if k % 2 == 1 { (1.3, 0.0) } else { (0.0, 1.3) };
+            zigzag.push([a, y]);
+            zigzag.push([b, y]);
+            strokes.push(strand(vec![[a, y], [b, y]], 0.45));
+        }
+        let opts = CheckOptions::default();
+        let joined = check_layer(
+            &[&below],
+            &layer(2, vec![strand(zigzag, 0.45)]),
+            fa,
+            &opts,
+            true,
+        );
+        let apart = check_layer(&[&below], &layer(2, strokes), fa, &opts, false);
+        assert!(
+            apart.in_air_mm < 1e-9 && apart.bridged_mm < 1e-9,
+            "{apart:?}"
+        );
+        // Every stroke is held; what is not is the connectors (laid round a corner off the
+        // fresh end of a stroke: short bridges), never in air.
+        assert!(joined.in_air_mm < 1e-9, "{joined:?}");
+        assert!(joined.bridged_mm <= 11.0 * 0.27 + 1e-9, "{joined:?}");
+        for s in joined
+            .samples
+            .iter()
+            .filter(|s| s.support != Support::Supported)
+        {
+            let y = s.point[1] / 0.27;
+            assert!(
+                (y - y.round()).abs() > 1e-6,
+                "a stroke's sample at {:?} unsupported",
+                s.point
+            );
+        }
+        // A straight strand still does not hold itself: one running on past the line below
+        // hangs.
+        let on = check_layer(
+            &[&below],
+            &layer(2, vec![strand(vec![[5.0, 0.0], [5.0, 3.0]], 0.45)]),
+            fa,
+            &opts,
+            false,
+        );
+        assert!(on.in_air_mm > 2.0, "{on:?}");
     }
 
     #[test]

@@ -102,6 +102,8 @@ pub struct RewriteStats {
     /// The longest of those travels (mm): a narrow region whose outline meets it at two far
     /// ends (an arch's crown) crosses it once, between finishing one end and the other.
     pub longest_inner_travel_mm: f64,
+    /// Loops reached from the one before by an extruded connector instead of a travel.
+    pub connectors: usize,
     /// Estimated time added (s), before acceleration: new strands and travel minus what the
     /// removed extrusion took.
     pub time_added_s: f64,
@@ -1072,7 +1074,20 @@ fn emit_block(
         *loop_lengths.entry(s.loop_index).or_default() += s.length();
     }
     for (i, s) in plan.strands.iter().enumerate() {
-        if i > 0 {
+        // The width the E makes, by the flow model at this layer's height.
+        let per_mm = motion.e_per_mm(s.width, height, settings.flow_factor);
+        if i > 0 && connects(&plan.strands[i - 1], s) {
+            // The next loop starts beside the end of this one: an extruded step over the
+            // loop just laid, with no travel (short strokes across a narrow arm would
+            // otherwise spend a fifth of their length on hops).
+            let len = dist(w.position(), s.points[0]);
+            let de = len * per_mm;
+            w.extrude_to(s.points[0], de);
+            stats.written_length_mm += len;
+            stats.written_filament_mm += de;
+            stats.connectors += 1;
+            time += len / motion.loop_speed.0;
+        } else if i > 0 {
             let d = dist(w.position(), s.points[0]);
             let short = d <= t.short_travel.max(2.0 * s.width);
             let hop = w.travel(t, s.points[0], !short);
@@ -1091,8 +1106,6 @@ fn emit_block(
             stats.dwell_s += settings.dwell;
         }
         last_loop = s.loop_index;
-        // The width the E makes, by the flow model at this layer's height.
-        let per_mm = motion.e_per_mm(s.width, height, settings.flow_factor);
         let bead = flow_width(per_mm, 1.0, height, motion.filament_area);
         if (bead - width_tag).abs() > 1e-6 {
             w.line(&format!(";WIDTH:{}", fmt_num(bead, 3)));
@@ -1140,6 +1153,59 @@ fn emit_block(
     w.line(";POA_END");
     stats.travel_mm += travel;
     stats.time_added_s += time;
+}
+
+/// Whether the loop strand `next` is reached from the end of `prev` by an extruded connector
+/// instead of a travel: both are loops, `next` the same loop or the one after, it starts
+/// within [`CONNECT_WIDTHS`] widths, the hop would be at least [`CONNECT_SHARE`] of its
+/// length (short strokes across a narrow arm, small rings at a region's tip), and the
+/// straight step between them stays on the two strands' beads (every point within
+/// [`CONNECT_NEAR`] widths of one of them: a step across a gap or out of the region is
+/// travelled).
+fn connects(prev: &Strand, next: &Strand) -> bool {
+    if prev.kind != StrandKind::Loop
+        || next.kind != StrandKind::Loop
+        || !(next.loop_index == prev.loop_index || next.loop_index == prev.loop_index + 1)
+    {
+        return false;
+    }
+    let (Some(&a), Some(&b)) = (prev.points.last(), next.points.first()) else {
+        return false;
+    };
+    let w = prev.width.min(next.width);
+    let len = ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2)).sqrt();
+    // A hop that is a small share of the strand it leads to is travelled: the connector,
+    // laid round a corner off the fresh end of the loop before, is itself a short bridge.
+    if len > CONNECT_WIDTHS * w || len < CONNECT_SHARE * polyline_length(&next.points) {
+        return false;
+    }
+    let n = ((len / (0.25 * w)).ceil() as usize).max(1);
+    (1..n).all(|k| {
+        let t = k as f64 / n as f64;
+        let p = [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])];
+        near_polyline(p, &prev.points, CONNECT_NEAR * w)
+            || near_polyline(p, &next.points, CONNECT_NEAR * w)
+    })
+}
+
+/// Longest extruded connector between loops, in loop widths: the seam stagger of closed
+/// rings (up to two widths along) and the step between strokes across a narrow arm.
+const CONNECT_WIDTHS: f64 = 2.0;
+
+/// How near (in widths) every point of a connector lies to one of the strands it joins: on
+/// their beads as the check finds support (half a width plus its reach, a quarter).
+const CONNECT_NEAR: f64 = 0.75;
+
+/// Hops shorter than this share of the strand they lead to stay travels (long loops: the
+/// travel is already a small part of the region's path).
+const CONNECT_SHARE: f64 = 0.05;
+
+/// Whether `p` lies within `r` of the polyline `line`.
+fn near_polyline(p: [f64; 2], line: &[[f64; 2]], r: f64) -> bool {
+    line.windows(2).any(|s| {
+        let (_, c) = crate::geometry::nearest_on_segment(p, s[0], s[1]);
+        (c[0] - p[0]).hypot(c[1] - p[1]) <= r
+    })
 }
 
 /// Longest hop (mm) into or out of a gradual overhang's block made without retraction.
@@ -2007,6 +2073,38 @@ pub fn update_binary_metadata(file: &mut crate::bgcode::Bgcode, report: &Process
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn loop_strand(loop_index: usize, points: Vec<[f64; 2]>) -> Strand {
+        Strand {
+            kind: StrandKind::Loop,
+            loop_index,
+            points,
+            width: 0.45,
+        }
+    }
+
+    #[test]
+    fn short_strokes_are_joined_by_connectors_long_loops_and_gaps_travelled() {
+        // Strokes 1.3 mm long across a narrow arm, 0.27 mm apart: joined.
+        let a = loop_strand(1, vec![[0.0, 0.0], [1.3, 0.0]]);
+        let b = loop_strand(2, vec![[1.3, 0.27], [0.0, 0.27]]);
+        assert!(connects(&a, &b));
+        // Not to a perimeter, not back to an earlier loop, not two loops on.
+        let mut p = b.clone();
+        p.kind = StrandKind::Perimeter;
+        assert!(!connects(&a, &p));
+        assert!(!connects(&b, &loop_strand(1, a.points.clone())));
+        assert!(!connects(&a, &loop_strand(3, b.points.clone())));
+        // A hop that is a small share of a long loop stays a travel.
+        let long = loop_strand(2, vec![[1.3, 0.27], [-20.0, 0.27]]);
+        assert!(!connects(&a, &long));
+        // Farther than two widths: travelled.
+        let far = loop_strand(2, vec![[1.3, 1.0], [0.0, 1.0]]);
+        assert!(!connects(&a, &far));
+        // A hop straight on past the end, to a piece beyond a gap, leaves both beads.
+        let beyond = loop_strand(2, vec![[2.1, 0.0], [2.1, -1.3]]);
+        assert!(!connects(&a, &beyond));
+    }
 
     #[test]
     fn a_layer_read_back_keeps_its_height_and_widths() {
