@@ -210,7 +210,8 @@ pub fn plan(
     // on this outline), and where it would hang a quarter width or more beyond loop 1's
     // place, one loop of half width is laid there first, biting into the layer below, so
     // that the perimeter leans on it.
-    let thin = opening(&inner, w / 4.0).unsigned_area() <= 0.0;
+    // (The opening is empty exactly when the erosion is: growing it back adds nothing.)
+    let thin = offset(&inner, -w / 4.0).unsigned_area() <= 0.0;
 
     // The moved external perimeter: the outline pulled in by half its width plus the inset,
     // convex corners rounded by half a width.
@@ -317,7 +318,7 @@ pub fn plan(
     // Only the front within a step of `inner` can grow into it: the rest of sectA's outline
     // is left out, which keeps every step's offset and cut small.
     let near = offset(&inner, 2.0 * step + w);
-    let first = intersection(&offset(&below_loc, step - w / 2.0), &near);
+    let first = intersection(&front, &near);
     let allowed = union(&inner, &first);
     // Ring parts on the cut are not fronts: clip to just inside the loop area.
     let strictly_inner = offset(&inner, -0.01);
