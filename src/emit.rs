@@ -1568,6 +1568,24 @@ impl<'a> PoaPass<'a> {
             // A layer with regions of its own always has the area below.
             _ => d.below.as_ref().unwrap_or(&crate::geometry::NO_AREA),
         };
+        // On the first layer, regions were found against it grown by the elephant-foot
+        // compensation (the outline it squashes out to); loops grow from what it prints
+        // (an elbow by PrusaSlicer: loop 1 laid 0.23 mm past the first layer's edge, 60 mm
+        // in air by the deposition check).
+        let shrink = self.opts.detect.first_layer_shrink;
+        let printed_below;
+        let below = if shrink > 0.0
+            && d.below.as_ref().is_some_and(|b| std::ptr::eq(b, below))
+            && self
+                .below_layers
+                .iter()
+                .any(|b| b.on_bed() && layer.rests_on.contains(&b.index))
+        {
+            printed_below = crate::geometry::offset(below, -shrink);
+            &printed_below
+        } else {
+            below
+        };
         let plans: Vec<(usize, RegionKind, Plan, f64)> = {
             use rayon::prelude::*;
             chosen

@@ -336,6 +336,10 @@ fn describe(
         // A thin ring or strip (a gradual overhang) touches the anchor zone all along, on
         // both of its edges in places: nothing in it spans anything.
         _ if reach <= THIN_REACH * opts.external_width => RegionKind::Overhang,
+        // Part of it reaches out past every span between its anchors (a table top's rim
+        // beyond its legs): strands there end in air whatever the slicer does, and the
+        // whole region is grown from its anchors like an overhang.
+        _ if cantilevered(&polygon, &anchor_zone, opts.external_width) => RegionKind::Overhang,
         _ => RegionKind::Bridge,
     };
     let (extrusions, object) = extrusions_inside(&polygon, layer, boxes);
@@ -397,6 +401,39 @@ fn anchored_stretches(
     }
     (count, total)
 }
+
+/// Whether a region anchored in several places has more than [`CANTILEVER_AREA`] mm2 of it
+/// outside the convex hull of its anchored boundary (grown by a bead width `w`, and opened
+/// by half a width: slivers along a bridge's sides are its edges, not a cantilever).
+fn cantilevered(polygon: &Polygon<f64>, zone: &MultiPolygon<f64>, w: f64) -> bool {
+    use geo::ConvexHull;
+    let mut anchored: Vec<Point<f64>> = Vec::new();
+    for ring in std::iter::once(polygon.exterior()).chain(polygon.interiors()) {
+        for seg in ring.0.windows(2) {
+            let (a, b) = (seg[0], seg[1]);
+            let len = ((b.x - a.x).powi(2) + (b.y - a.y).powi(2)).sqrt();
+            let n = ((len / ANCHOR_STEP).ceil() as usize).clamp(1, 100_000);
+            for k in 0..=n {
+                let t = k as f64 / n as f64;
+                let p = Point::new(a.x + (b.x - a.x) * t, a.y + (b.y - a.y) * t);
+                if zone.contains(&p) {
+                    anchored.push(p);
+                }
+            }
+        }
+    }
+    if anchored.len() < 3 {
+        return false;
+    }
+    let hull = geo::MultiPoint::new(anchored).convex_hull();
+    let spans = super::offset(&MultiPolygon::new(vec![hull]), w);
+    let beyond = BooleanOps::difference(polygon, &spans);
+    opening(&beyond, w / 2.0).unsigned_area() > CANTILEVER_AREA
+}
+
+/// Area (mm2) of a bridge outside the spans between its anchors past which it is an
+/// overhang: the default smallest region.
+const CANTILEVER_AREA: f64 = 1.0;
 
 /// Largest distance from the region to `below`, sampled at the region's vertices and on a
 /// grid inside it.
@@ -546,6 +583,27 @@ fn extrusions_inside(
 mod tests {
     use super::super::testutil::*;
     use super::*;
+
+    #[test]
+    fn a_bridge_with_a_rim_past_its_anchors_is_cantilevered() {
+        let rect = |x0: f64, y0: f64, x1: f64, y1: f64| {
+            Polygon::new(
+                LineString::from(vec![(x0, y0), (x1, y0), (x1, y1), (x0, y1), (x0, y0)]),
+                vec![],
+            )
+        };
+        // Two piers under the ends of a 40 mm span, 10 mm wide (grown by the anchor reach).
+        let piers = MultiPolygon::new(vec![
+            rect(-5.0, -0.3, 0.3, 10.3),
+            rect(39.7, -0.3, 45.0, 10.3),
+        ]);
+        // The deck between them: every part lies between its anchors.
+        assert!(!cantilevered(&rect(0.0, 0.0, 40.0, 10.0), &piers, 0.45));
+        // A deck 4 mm wider than the piers on one side: its rim has nothing to span to.
+        assert!(cantilevered(&rect(0.0, 0.0, 40.0, 14.0), &piers, 0.45));
+        // A sliver along the side (half a bead) is the deck's edge, not a rim.
+        assert!(!cantilevered(&rect(0.0, 0.0, 40.0, 10.6), &piers, 0.45));
+    }
     use crate::layers::LayerKind;
     use geo::{coord, LineString};
 

@@ -211,7 +211,14 @@ pub fn plan(
     // place, one loop of half width is laid there first, biting into the layer below, so
     // that the perimeter leans on it.
     // (The opening is empty exactly when the erosion is: growing it back adds nothing.)
-    let thin = offset(&inner, -w / 4.0).unsigned_area() <= 0.0;
+    // Specks of room smaller than a bead's square hold no loop: the notch a moved perimeter
+    // of the layer below leaves where its pieces meet the slicer's (a bowl's flank by Cura,
+    // one wall: one speck made the whole ring wide, its perimeter stayed where the slicer
+    // put it and hung 0.375 mm past the moved one below, 63.5 mm in air).
+    let thin = offset(&inner, -w / 4.0)
+        .0
+        .iter()
+        .all(|p| p.unsigned_area() < w * w);
 
     // The moved external perimeter: the outline pulled in by half its width plus the inset,
     // convex corners rounded by half a width.

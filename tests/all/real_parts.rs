@@ -163,6 +163,58 @@ fn a_box_with_a_roof_and_a_window() {
     }
 }
 
+/// A table whose top reaches 6 mm past its legs: between the legs a bridge, beyond them a
+/// rim no bridge strand is anchored under. Kept as a bridge it left 2.4 m in air; now it is
+/// an overhang, grown from the legs.
+#[test]
+fn a_table_top_reaching_past_its_legs_gets_loops() {
+    for (what, before, after) in judge("table") {
+        assert!(
+            after.in_air_mm < 0.01 * before.in_air_mm,
+            "{what}: {:.1} mm in air, {:.1} before",
+            after.in_air_mm,
+            before.in_air_mm
+        );
+    }
+}
+
+/// An open bowl, its flank a gradual overhang up to the rim, by Cura with one wall: the
+/// layer past the last one whose slicer perimeter hung (and was moved) found a speck of room
+/// for a loop where the moved perimeter's pieces met, was planned as a wide region, kept
+/// its perimeter where the slicer put it and hung past the moved one below (0 -> 63.5 mm in
+/// air).
+#[test]
+fn a_bowl_flank_by_cura_with_one_wall_stays_held_above_its_moved_perimeters() {
+    let settings = [
+        "layer_height=0.16",
+        "infill_sparse_thickness=0.16",
+        "wall_line_count=1",
+        "infill_pattern=cubic",
+    ];
+    if let Some(d) = slice_cura(&part("bowl"), "prusa_i3_mk3", &settings) {
+        let (what, before, after) = judge_one("bowl by Cura (one wall)".into(), &d);
+        for (b, a) in before.layers.iter().zip(&after.layers) {
+            assert!(
+                a.in_air_mm <= b.in_air_mm + 0.3,
+                "{what}: layer {} {:.1} mm in air, {:.1} before",
+                b.layer,
+                a.in_air_mm,
+                b.in_air_mm
+            );
+        }
+    }
+}
+
+/// A pipe elbow lying on the bed: its second layer hangs past the first one, which
+/// PrusaSlicer draws in by its elephant-foot compensation. The loops grow from the first
+/// layer as printed (they were laid from its squashed-out outline, 60 mm in air).
+#[test]
+fn an_elbow_lying_on_the_bed_is_held_from_its_first_layer() {
+    for (what, before, after) in judge("elbow") {
+        held_up(&what, &before, &after, 10.0);
+    }
+}
+
 #[test]
 fn two_shelves_with_holes() {
     judge("shelves_hole");
