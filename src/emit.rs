@@ -1653,17 +1653,19 @@ impl<'a> PoaPass<'a> {
 
 impl Pass for PoaPass<'_> {
     fn layer(&mut self, d: &crate::geometry::Detected) -> Result<Option<Vec<u8>>, Error> {
-        self.layer_under(d, None)
+        self.layer_under(d, None, false)
     }
 }
 
 impl PoaPass<'_> {
     /// [`Pass::layer`] knowing the layer printed next (`above`, as read), which may rest on
-    /// the ends of this layer's strands: those are not cut away.
+    /// the ends of this layer's strands: those are not cut away; and whether it has regions
+    /// of its own (`above_regions`): those are then planned on this layer as rewritten.
     pub fn layer_under(
         &mut self,
         d: &crate::geometry::Detected,
         above: Option<&Layer>,
+        above_regions: bool,
     ) -> Result<Option<Vec<u8>>, Error> {
         // Above a rewritten layer the regions are found again on the layer as rewritten:
         // a perimeter moved in there moves this layer's support.
@@ -1728,10 +1730,16 @@ impl PoaPass<'_> {
                 }
             })
             .collect();
-        // Only a gradual overhang's plan moves the outline the layer above stands on (a wide
-        // region's loops fill its zone): the layer as rewritten is made only then, since
-        // buffering every loop of a big region costs as much as the region search.
-        self.rewritten_below = if !rewrites.iter().any(|r| r.plan.with_perimeter) {
+        // A gradual overhang's plan moves the outline the layer above stands on; a wide
+        // region's loops fill its zone, and only its perimeter's inset moves the outline,
+        // which matters where the layer above has regions of its own (their loops grow from
+        // it: an elbow's third layer, over a second one whose outer perimeter went in by
+        // 0.08 mm, laid its loop that much farther out, 61 mm in air). The layer as
+        // rewritten is made only then, since buffering every loop of a big region costs as
+        // much as the region search.
+        let moves_outline = rewrites.iter().any(|r| r.plan.with_perimeter)
+            || (above_regions && !rewrites.is_empty() && self.opts.settings.perimeter_inset > 0.0);
+        self.rewritten_below = if !moves_outline {
             None
         } else {
             let zones = rewrites.iter().fold(MultiPolygon(Vec::new()), |acc, r| {
@@ -1944,14 +1952,19 @@ pub fn process<R: BufRead + Send, W: Write>(
     let mut held: Option<Vec<u8>> = None;
     // Each layer is rewritten once the next one is read: an end of a strand the layer above
     // rests on is not cut away.
-    let mut handle = |d: crate::geometry::Detected, above: Option<&Layer>| -> io::Result<()> {
+    let mut handle = |d: crate::geometry::Detected,
+                      above: Option<&Layer>,
+                      above_regions: bool|
+     -> io::Result<()> {
         if let Some(n) = &d.layer.objects {
             pass.report.objects.clone_from(n);
         }
         if d.layer.kind == crate::layers::LayerKind::Layer {
             pass.report.layers += 1;
         }
-        let rewritten = pass.layer_under(&d, above).map_err(io::Error::other)?;
+        let rewritten = pass
+            .layer_under(&d, above, above_regions)
+            .map_err(io::Error::other)?;
         let report = &mut pass.report;
         let mut layer = d.layer;
         // A layer passed through is moved to the output, not copied.
@@ -1996,12 +2009,12 @@ pub fn process<R: BufRead + Send, W: Write>(
         let ready = pending.take();
         let next = pending.insert(d);
         match ready {
-            Some(p) => handle(p, Some(&next.layer)),
+            Some(p) => handle(p, Some(&next.layer), !next.regions.is_empty()),
             None => Ok(()),
         }
     })?;
     if let Some(p) = pending {
-        handle(p, None)?;
+        handle(p, None, false)?;
     }
     let mut report = pass.report;
     report.filament_added_cm3 = report.filament_added_mm * filament_area / 1000.0;
