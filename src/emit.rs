@@ -125,6 +125,9 @@ fn line_end(raw: &[u8]) -> &'static str {
     }
 }
 
+/// Regions of a layer with their report numbers.
+type Chosen<'r> = Vec<(usize, &'r crate::geometry::Region)>;
+
 /// Roles whose strands inside a zone are replaced.
 fn replaced(role: Role) -> bool {
     role.is_part()
@@ -1493,15 +1496,14 @@ impl<'a> PoaPass<'a> {
         d: &crate::geometry::Detected,
         regions: &'r [crate::geometry::Region],
         above_rewrite: bool,
-    ) -> Vec<(usize, &'r crate::geometry::Region)> {
+    ) -> (Chosen<'r>, Chosen<'r>) {
         let mut chosen = Vec::new();
+        let mut left = Vec::new();
         for r in regions {
             self.next_id += 1;
+            self.report.regions_found += 1;
+            let object = self.object_name(r.object);
             let report = &mut self.report;
-            report.regions_found += 1;
-            let object = r
-                .object
-                .and_then(|o| report.objects.get(o as usize).cloned());
             // Above a rewrite, a "bridge" is the gap a moved perimeter left: rewritten too.
             let why = if !self.opts.settings.rewrites(r.kind) && !above_rewrite {
                 match r.kind {
@@ -1520,8 +1522,14 @@ impl<'a> PoaPass<'a> {
                 kind: r.kind,
                 reason: why.to_string(),
             });
+            left.push((self.next_id, r));
         }
-        chosen
+        (chosen, left)
+    }
+
+    /// The name of object number `o`, as the file labels it.
+    fn object_name(&self, o: Option<u32>) -> Option<String> {
+        o.and_then(|o| self.report.objects.get(o as usize).cloned())
     }
 
     /// Hands the pass the layer just passed (its raw bytes may be gone): the next layer's
@@ -1548,7 +1556,8 @@ impl<'a> PoaPass<'a> {
         &mut self,
         d: &crate::geometry::Detected,
         area: &MultiPolygon<f64>,
-        chosen: &[(usize, &crate::geometry::Region)],
+        left: &Chosen<'_>,
+        chosen: &Chosen<'_>,
     ) -> Vec<RegionRewrite> {
         let layer = &d.layer;
         let start = layer
@@ -1586,12 +1595,47 @@ impl<'a> PoaPass<'a> {
         } else {
             below
         };
+        // A floating region within a bead of a rewritten one (walls round a slot in it) is
+        // planned with it; the regions left as sliced keep their strands.
+        let mut absorbed: Vec<(usize, usize)> = Vec::new();
+        let others: Vec<crate::poa::Others> = chosen
+            .iter()
+            .map(|(id, r)| {
+                use geo::Intersects;
+                let near = crate::geometry::offset(
+                    &MultiPolygon::new(vec![r.polygon.clone()]),
+                    widths.loop_width,
+                );
+                let mut o = crate::poa::Others::default();
+                for (fid, f) in left {
+                    let joins = f.kind == RegionKind::Floating
+                        && self
+                            .opts
+                            .objects
+                            .allows(self.object_name(f.object).as_deref())
+                        && near.intersects(&f.polygon);
+                    if joins {
+                        o.absorb.0.push(f.polygon.clone());
+                        absorbed.push((*fid, *id));
+                    } else {
+                        o.keep_out.0.push(f.polygon.clone());
+                    }
+                }
+                o
+            })
+            .collect();
+        for (fid, id) in absorbed {
+            if let Some(s) = self.report.skipped.iter_mut().find(|s| s.region == fid) {
+                s.reason = format!("floating: planned with region {id}, beside it");
+            }
+        }
         let plans: Vec<(usize, RegionKind, Plan, f64)> = {
             use rayon::prelude::*;
             chosen
                 .par_iter()
-                .map(|(id, r)| {
-                    let plan = crate::poa::plan(r, below, area, widths, settings, start);
+                .zip(others.par_iter())
+                .map(|((id, r), others)| {
+                    let plan = crate::poa::plan(r, below, area, others, widths, settings, start);
                     (*id, r.kind, plan, object_height(layer, r.object))
                 })
                 .collect()
@@ -1688,11 +1732,11 @@ impl PoaPass<'_> {
             }
             _ => (&d.regions[..], false),
         };
-        let chosen = self.choose(d, regions, above_rewrite);
+        let (chosen, left) = self.choose(d, regions, above_rewrite);
         let rewrites = if chosen.is_empty() {
             Vec::new()
         } else {
-            self.plan(d, area(), &chosen)
+            self.plan(d, area(), &left, &chosen)
         };
         let layer = &d.layer;
         // The layers this one rests on, all of them kept, or none (no end anchored or cut).

@@ -145,11 +145,34 @@ const NEAR_LOOP_AT_OUTER_FIRST: f64 = 0.15;
 /// full one: at a full step its narrower bead would only just touch the loop before.
 const HALF_BACK: f64 = 0.05;
 
-/// Plans the loops of `region`. `start` is where the nozzle is when the plan begins.
+/// The layer's other regions, as they bear on one region's plan.
+#[derive(Debug, Clone)]
+pub struct Others {
+    /// What the plan must leave as sliced: the layer's regions not rewritten (a floating
+    /// ring of walls round a slot kept its strands only if no zone reached over it).
+    pub keep_out: MultiPolygon<f64>,
+    /// Floating regions next to this one, planned with it: its loops grow into them (the
+    /// walls round a slot in an overhang, which Cura prints apart when the outer wall goes
+    /// first, were left floating and the layer above hung over the slot).
+    pub absorb: MultiPolygon<f64>,
+}
+
+impl Default for Others {
+    fn default() -> Self {
+        Others {
+            keep_out: MultiPolygon::new(Vec::new()),
+            absorb: MultiPolygon::new(Vec::new()),
+        }
+    }
+}
+
+/// Plans the loops of `region` (with the floating regions `others` gives it). `start` is
+/// where the nozzle is when the plan begins.
 pub fn plan(
     region: &Region,
     below: &MultiPolygon<f64>,
     area: &MultiPolygon<f64>,
+    others: &Others,
     widths: Widths,
     settings: &PoaSettings,
     start: [f64; 2],
@@ -163,7 +186,11 @@ pub fn plan(
 
     // Work near the region only: sectA within reach of it (every loop point's nearest sectA
     // point lies there), sectB a little beyond it.
-    let region_mp = MultiPolygon::new(vec![region.polygon.clone()]);
+    let region_mp = MultiPolygon::new(
+        std::iter::once(region.polygon.clone())
+            .chain(others.absorb.0.iter().cloned())
+            .collect(),
+    );
     let hint = offset(&region_mp, widths.tolerance + w);
     // Booleans with a whole plate's layer cost as much as the plate: take the parts near by.
     // Cut to boxes round the region, not to its offsets: an offset by the region's reach
@@ -182,16 +209,28 @@ pub fn plan(
         &near(below, &hint_box, reach + w),
         &boxed(&hint_box, reach + w),
     );
-    let area_loc = intersection(
-        &near(area, &hint_box, 2.0 * we + 2.0),
-        &boxed(&hint_box, 2.0 * we + 2.0),
+    // Gaps narrower than half a bead in what the layer prints are no gaps (beads squash
+    // into them): closed, so that an island of walls the slicer set 0.07 mm off the skin (a
+    // slot's walls by Cura, outer wall first) is part of the outline the perimeter follows.
+    let area_loc = offset(
+        &offset(
+            &intersection(
+                &near(area, &hint_box, 2.0 * we + 2.0),
+                &boxed(&hint_box, 2.0 * we + 2.0),
+            ),
+            w / 4.0,
+        ),
+        -w / 4.0,
     );
 
     // The zone: what sectB prints beyond sectA around this region, slivers dropped.
-    let zone = opening(
+    let mut zone = opening(
         &intersection(&difference(&area_loc, &offset(&below_loc, 0.01)), &hint),
         SLIVER,
     );
+    if !others.keep_out.0.is_empty() {
+        zone = difference(&zone, &offset(&others.keep_out, 0.01));
+    }
     if zone.unsigned_area() <= 0.0 {
         return Plan {
             zone,
@@ -835,6 +874,7 @@ mod tests {
                 &region(poly.clone(), &below),
                 &below,
                 &area,
+                &Others::default(),
                 widths,
                 &settings,
                 [0.0, 0.0],
@@ -1005,6 +1045,7 @@ mod tests {
             &region(poly, &below),
             &below,
             &area,
+            &Others::default(),
             widths,
             &settings,
             [0.0, 0.0],
@@ -1058,6 +1099,7 @@ mod tests {
             &region(zone.0[0].clone(), &below),
             &below,
             &shelf,
+            &Others::default(),
             widths,
             &PoaSettings::default(),
             [0.0, 0.0],
@@ -1143,6 +1185,7 @@ mod tests {
                     &region(zone.0[0].clone(), &below),
                     &below,
                     &area,
+                    &Others::default(),
                     widths,
                     &PoaSettings::default(),
                     [0.0, 0.0],

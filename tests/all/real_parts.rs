@@ -218,6 +218,19 @@ fn an_elbow_lying_on_the_bed_is_held_from_its_first_layer() {
     }
 }
 
+/// A shelf with a slot through it, by Cura with the outer wall first: the slot's walls are
+/// set a little apart from the shelf's skin, a floating island beside the overhang region.
+/// They were taken out with the region and not laid again (no perimeter round the slot),
+/// and the layer above hung over the slot (0 -> 37.3 mm in air).
+#[test]
+fn a_slot_in_a_shelf_keeps_its_walls_when_cura_prints_the_outer_wall_first() {
+    let settings = ["outer_inset_first=true", "bridge_settings_enabled=true"];
+    if let Some(d) = slice_cura(&part("slot_shelf"), "prusa_i3_mk3", &settings) {
+        let (what, before, after) = judge_one("slot_shelf by Cura (outer wall first)".into(), &d);
+        cut_to(&what, &before, &after, 0.01);
+    }
+}
+
 #[test]
 fn two_shelves_with_holes() {
     judge("shelves_hole");
