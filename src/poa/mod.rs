@@ -141,6 +141,11 @@ const NEAR_LOOP_AT: f64 = 0.2;
 /// where the perimeter would hang a quarter width past the layer below, the check's mark
 /// (Cura with `outer_inset_first`: a dome's underside 120.8 -> 82.6 mm in air at 0.2).
 const NEAR_LOOP_AT_OUTER_FIRST: f64 = 0.15;
+/// A thin ring's loop whose pieces past [`NEAR_LOOP_AT`] make up this share of what lies
+/// under the perimeter is laid all along there, [`UNDER_AT`] widths or more inside the
+/// perimeter's centre.
+const RING_NEEDED: f64 = 0.5;
+const UNDER_AT: f64 = 0.05;
 /// How much nearer the loop before (in widths) a half-width loop of a thin ring lies than a
 /// full one: at a full step its narrower bead would only just touch the loop before.
 const HALF_BACK: f64 = 0.05;
@@ -300,6 +305,9 @@ pub fn plan(
         let full_room = offset(&perimeter_area, -HALF_LOOP_AT * w);
         // Where a half-width loop goes, measured where the full one would lie.
         let near_half = intersection(&zone, &offset(&perimeter_area, -(near_at + HALF_BACK) * w));
+        // Under the perimeter's inner side at all: where a ring most of which is needed is
+        // laid whole (see below).
+        let under = intersection(&zone, &offset(&perimeter_area, -UNDER_AT * w));
         let extent =
             geo::BoundingRect::bounding_rect(&zone).map_or(0.0, |b| b.width().hypot(b.height()));
         let mut at = start;
@@ -311,9 +319,19 @@ pub fn plan(
             } else {
                 rings(&offset(&below_loc, k as f64 * step - w / 2.0))
             };
-            let pieces = clip_lines(&ring, &near_room, true);
+            let mut pieces = clip_lines(&ring, &near_room, true);
             if pieces.is_empty() {
                 break;
+            }
+            let length = |v: &[Polyline]| v.iter().map(|p| polyline_length(p)).sum::<f64>();
+            // A ring most of which is needed is laid wherever it lies under the perimeter: a
+            // faceted wall (a dome closing round its hole) puts a ring near the mark in and
+            // out of it every facet, and the short pieces were dropped, leaving the perimeter
+            // 0.35 mm past the loop before (22 mm in air on one layer).
+            let whole = clip_lines(&ring, &under, true);
+            let needed = length(&pieces) >= RING_NEEDED * length(&whole);
+            if needed {
+                pieces = whole;
             }
             let shape = |width: f64| Shape {
                 kind: StrandKind::Loop,
@@ -326,7 +344,6 @@ pub fn plan(
             // under it: decided for the whole ring, since a faceted wall puts a ring near
             // the mark in and out of it every few millimetres, and pieces that short were
             // dropped, leaving no loop at all.
-            let length = |v: &[Polyline]| v.iter().map(|p| polyline_length(p)).sum::<f64>();
             let inside_full = length(&clip_lines(&pieces, &full_room, true));
             if inside_full >= 0.5 * length(&pieces) {
                 strands.extend(shape(w).strands(pieces, 2.0 * w, &mut at));
@@ -335,7 +352,11 @@ pub fn plan(
                     &below_loc,
                     k as f64 * step - w / 2.0 - HALF_BACK * w,
                 ));
-                let half = clip_lines(&half_ring, &near_half, true);
+                let half = if needed {
+                    clip_lines(&half_ring, &under, true)
+                } else {
+                    clip_lines(&half_ring, &near_half, true)
+                };
                 strands.extend(shape(w / 2.0).strands(half, 2.0 * w, &mut at));
             }
             if strands.len() > before {

@@ -231,6 +231,35 @@ fn a_slot_in_a_shelf_keeps_its_walls_when_cura_prints_the_outer_wall_first() {
     }
 }
 
+/// A domed ceiling closing round a shrinking hole (Cura, 0.12 mm): on a 64-faceted ring
+/// the second loop of a thin ring lay near the mark in and out of it every facet, its short
+/// pieces were dropped, and the perimeter hung 0.35 mm past loop 1 (22 mm in air).
+#[test]
+fn a_domed_ceiling_is_held_round_its_closing_hole() {
+    let settings = [
+        "layer_height=0.12",
+        "infill_sparse_thickness=0.12",
+        "infill_pattern=gyroid",
+        "wall_line_count=3",
+    ];
+    let Some(d) = slice_cura(&part("dome_box"), "creality_ender3", &settings) else {
+        return;
+    };
+    let (new, rep) = rewrite(&d, BridgeMode::Keep);
+    let (before, after) = (check(&d), check(&new));
+    // Every layer poa rewrote (the floor's own top over its sparse infill is the slicer's).
+    for r in &rep.rewrites {
+        let (b, a) = (&before.layers[r.layer - 1], &after.layers[r.layer - 1]);
+        assert!(
+            a.in_air_mm <= 1.0,
+            "dome_box by Cura: layer {} {:.1} mm in air, {:.1} before",
+            r.layer,
+            a.in_air_mm,
+            b.in_air_mm
+        );
+    }
+}
+
 #[test]
 fn two_shelves_with_holes() {
     judge("shelves_hole");
