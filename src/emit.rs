@@ -29,7 +29,7 @@ use crate::geometry::{RegionKind, RingIndex};
 use crate::layers::{flow_width, Layer, Role, SlicerConfig};
 use crate::machine::{Action, Machine};
 use crate::pass::Pass;
-use crate::poa::{polyline_length, Plan, PoaSettings, Strand, StrandKind};
+use crate::poa::{polyline_length, BridgeMode, Plan, PoaSettings, Strand, StrandKind};
 use crate::progress::footer_line;
 pub use crate::progress::update_footer;
 use crate::writer::{fmt_num, MmPerMin, MmPerS, TravelStyle, Writer};
@@ -1211,6 +1211,10 @@ fn near_polyline(p: [f64; 2], line: &[[f64; 2]], r: f64) -> bool {
     })
 }
 
+/// Length (mm) of a bridge's slicer strands the deposition check may find in air before
+/// `--bridges auto` rewrites it: the acceptance's own mark for what a layer may keep in air.
+const HANGING_BRIDGE: f64 = 1.0;
+
 /// Longest hop (mm) into or out of a gradual overhang's block made without retraction.
 const THIN_HOP: f64 = 10.0;
 
@@ -1496,16 +1500,18 @@ impl<'a> PoaPass<'a> {
         d: &crate::geometry::Detected,
         regions: &'r [crate::geometry::Region],
         above_rewrite: bool,
+        hanging: &[bool],
     ) -> (Chosen<'r>, Chosen<'r>) {
         let mut chosen = Vec::new();
         let mut left = Vec::new();
-        for r in regions {
+        for (k, r) in regions.iter().enumerate() {
             self.next_id += 1;
             self.report.regions_found += 1;
             let object = self.object_name(r.object);
             let report = &mut self.report;
             // Above a rewrite, a "bridge" is the gap a moved perimeter left: rewritten too.
-            let why = if !self.opts.settings.rewrites(r.kind) && !above_rewrite {
+            let hangs = hanging.get(k).copied().unwrap_or(false);
+            let why = if !self.opts.settings.rewrites(r.kind) && !above_rewrite && !hangs {
                 match r.kind {
                     RegionKind::Bridge => "bridge (use --bridges poa to rewrite bridges)",
                     _ => "floating: nothing below to grow loops from",
@@ -1525,6 +1531,63 @@ impl<'a> PoaPass<'a> {
             left.push((self.next_id, r));
         }
         (chosen, left)
+    }
+
+    /// For each of `regions`, whether it is a bridge that `--bridges auto` rewrites: the
+    /// deposition check finds more than [`HANGING_BRIDGE`] mm of the slicer's strands over
+    /// it in air (spans longer than the check's longest bridge, strands along a gap instead
+    /// of across it: a stair of fins by Cura, 75 mm in air on each gap's first layer).
+    fn hanging_bridges(&self, layer: &Layer, regions: &[crate::geometry::Region]) -> Vec<bool> {
+        use geo::Contains;
+        let auto = |r: &crate::geometry::Region| {
+            r.kind == RegionKind::Bridge && self.opts.settings.bridges == BridgeMode::Auto
+        };
+        if !regions.iter().any(auto) {
+            return vec![false; regions.len()];
+        }
+        let below: Option<Vec<&Layer>> = layer
+            .rests_on
+            .iter()
+            .map(|&i| {
+                self.below_layers
+                    .iter()
+                    .find(|b| b.index == i && b.kind == layer.kind)
+            })
+            .collect();
+        let Some(below) = below.filter(|b| !b.is_empty()) else {
+            return vec![false; regions.len()];
+        };
+        let c = crate::check::check_layer(
+            &below,
+            layer,
+            self.motion.filament_area,
+            &crate::check::CheckOptions::default(),
+            true,
+        );
+        let in_air: Vec<&crate::check::Sample> = c
+            .samples
+            .iter()
+            .filter(|s| s.support == crate::check::Support::InAir)
+            .collect();
+        let half = self.width_on(layer) / 2.0;
+        regions
+            .iter()
+            .map(|r| {
+                if !auto(r) || in_air.is_empty() {
+                    return false;
+                }
+                // A strand's samples lie on its centreline, up to half a width past the
+                // region's edge.
+                let grown =
+                    crate::geometry::offset(&MultiPolygon::new(vec![r.polygon.clone()]), half);
+                let air: f64 = in_air
+                    .iter()
+                    .filter(|s| grown.contains(&geo::Point::new(s.point[0], s.point[1])))
+                    .map(|s| s.length)
+                    .sum();
+                air > HANGING_BRIDGE
+            })
+            .collect()
     }
 
     /// The name of object number `o`, as the file labels it.
@@ -1732,7 +1795,8 @@ impl PoaPass<'_> {
             }
             _ => (&d.regions[..], false),
         };
-        let (chosen, left) = self.choose(d, regions, above_rewrite);
+        let hanging = self.hanging_bridges(&d.layer, regions);
+        let (chosen, left) = self.choose(d, regions, above_rewrite, &hanging);
         let rewrites = if chosen.is_empty() {
             Vec::new()
         } else {

@@ -54,7 +54,7 @@ pub const SPECS: &[Spec] = &[
     Spec { key: "flow_factor", kind: Kind::Number { min: 0.5, max: 2.0 }, default: "1.0", unit: "", help: "extrusion multiplier for poa's strands" },
     Spec { key: "perimeter_inset", kind: Kind::Number { min: 0.0, max: 2.0 }, default: "0.05", unit: "mm", help: "how far the region's outer perimeter is pulled inward" },
     Spec { key: "temperature_offset", kind: Kind::Number { min: -50.0, max: 50.0 }, default: "0", unit: "C", help: "nozzle temperature change while printing loops" },
-    Spec { key: "bridges", kind: Kind::Choice(&["keep", "poa"]), default: "keep", unit: "", help: "rewrite bridges too (poa) or leave them as sliced (keep)" },
+    Spec { key: "bridges", kind: Kind::Choice(&["auto", "keep", "poa"]), default: "auto", unit: "", help: "rewrite bridges whose slicer strands would be in air (auto), all bridges (poa), or none (keep)" },
     Spec { key: "tolerance", kind: Kind::Auto { min: 0.0, max: 10.0 }, default: "auto", unit: "mm", help: "distance from the layer below that still counts as supported (auto: half the external perimeter width)" },
     Spec { key: "overhang_angle", kind: Kind::Auto { min: 0.0, max: 89.9 }, default: "auto", unit: "deg", help: "the tolerance as an overhang angle from vertical (overrides tolerance)" },
     Spec { key: "min_width", kind: Kind::Auto { min: 0.0, max: 50.0 }, default: "auto", unit: "mm", help: "narrowest region rewritten (auto: a tenth of a perimeter width, so gradual overhangs are rewritten too)" },
@@ -450,7 +450,8 @@ impl Effective {
             temperature_offset: self.required("temperature_offset"),
             bridges: match self.get("bridges") {
                 Value::Word(w) if w == "poa" => BridgeMode::Poa,
-                _ => BridgeMode::Keep,
+                Value::Word(w) if w == "keep" => BridgeMode::Keep,
+                _ => BridgeMode::Auto,
             },
         }
     }
@@ -660,7 +661,7 @@ mod tests {
         let e = parse_profile("bridges: maybe\n", "p.yaml").unwrap_err();
         assert_eq!(
             e.0,
-            "p.yaml line 1: `bridges` must be one of keep, poa (got `maybe`)"
+            "p.yaml line 1: `bridges` must be one of auto, keep, poa (got `maybe`)"
         );
         let e = parse_profile("- a\n- b\n", "p.yaml").unwrap_err();
         assert!(e.0.contains("key: value"), "{}", e.0);

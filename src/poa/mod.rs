@@ -27,6 +27,10 @@ use crate::geometry::{
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum BridgeMode {
+    /// Leave a bridge as the slicer made it where its strands hold (anchored at both ends
+    /// within the deposition check's longest bridge), rewrite it where more than 1 mm of
+    /// them would be in air (spans too long, strands along a gap instead of across it).
+    Auto,
     /// Leave bridges as the slicer made them (a bridge anchored at both ends prints well).
     Keep,
     /// Rewrite bridges with loops too.

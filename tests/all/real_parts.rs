@@ -61,7 +61,7 @@ fn judge_with(name: &str, args: &[&str]) -> Vec<(String, CheckReport, CheckRepor
 /// same rewrite.
 fn judge_one(what: String, data: &[u8]) -> (String, CheckReport, CheckReport) {
     {
-        let (new, rep) = rewrite(data, BridgeMode::Keep);
+        let (new, rep) = rewrite(data, BridgeMode::Auto);
         let (before, after) = (check(data), check(&new));
         assert_eq!(before.layers.len(), after.layers.len(), "{what}");
         let rewritten: std::collections::BTreeSet<usize> =
@@ -258,6 +258,38 @@ fn a_domed_ceiling_is_held_round_its_closing_hole() {
             b.in_air_mm
         );
     }
+}
+
+/// `--bridges auto`: a bridge whose slicer strands span it is kept as sliced (Cura's short
+/// bridge: nothing in air); one the deposition check finds partly in air is rewritten
+/// (PrusaSlicer's overhang perimeters along the same deck, paths of their own that start
+/// and end over the gap: 25 mm; the 40 mm bridge sample's spans: 1953 mm).
+#[test]
+fn bridges_auto_rewrites_only_the_bridges_whose_strands_hang() {
+    if let Some(d) = slice_cura(
+        &part("short_bridge"),
+        "prusa_i3_mk3",
+        &["bridge_settings_enabled=true"],
+    ) {
+        let (_, rep) = rewrite(&d, BridgeMode::Auto);
+        assert_eq!(rep.regions_rewritten, 0, "{:?}", rep.rewrites);
+        assert!(
+            rep.skipped.iter().all(|s| s.reason.starts_with("bridge")),
+            "{:?}",
+            rep.skipped
+        );
+    }
+    if let Some(d) = slice("short_bridge", &[]) {
+        let (what, before, after) = judge_one("short_bridge by PrusaSlicer".into(), &d);
+        assert!(before.in_air_mm > 10.0, "{what}: {:.1}", before.in_air_mm);
+        cut_to(&what, &before, &after, 0.01);
+    }
+    let span40 = std::fs::read(sample("bridge_prusa_abs.gcode")).unwrap();
+    let (what, before, after) = judge_one("bridge sample".into(), &span40);
+    cut_to(&what, &before, &after, 0.01);
+    let (kept, rep) = rewrite(&span40, BridgeMode::Keep);
+    assert_eq!(rep.regions_rewritten, 0);
+    assert_eq!(check(&kept).in_air_mm, before.in_air_mm);
 }
 
 #[test]

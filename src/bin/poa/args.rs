@@ -230,7 +230,7 @@ pub struct RewriteArgs {
     pub set: Vec<String>,
     #[arg(long, value_name = "C", allow_hyphen_values = true, help = settings::flag_help("temperature_offset"))]
     pub temperature_offset: Option<f64>,
-    #[arg(long, value_name = "MODE", value_parser = ["keep", "poa"], help = settings::flag_help("bridges"))]
+    #[arg(long, value_name = "MODE", value_parser = ["auto", "keep", "poa"], help = settings::flag_help("bridges"))]
     pub bridges: Option<String>,
     #[arg(long, value_name = "SHARE", help = settings::flag_help("overlap"))]
     pub overlap: Option<f64>,
