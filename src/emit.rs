@@ -125,6 +125,16 @@ fn line_end(raw: &[u8]) -> &'static str {
     }
 }
 
+/// The layers `layer` rests on among `kept`, all of them, or none (no end anchored or cut).
+fn resting_on<'a>(kept: &'a std::collections::VecDeque<Layer>, layer: &Layer) -> Vec<&'a Layer> {
+    layer
+        .rests_on
+        .iter()
+        .map(|&i| kept.iter().find(|b| b.index == i && b.kind == layer.kind))
+        .collect::<Option<Vec<&Layer>>>()
+        .unwrap_or_default()
+}
+
 /// Regions of a layer with their report numbers.
 type Chosen<'r> = Vec<(usize, &'r crate::geometry::Region)>;
 
@@ -1545,16 +1555,8 @@ impl<'a> PoaPass<'a> {
         if !regions.iter().any(auto) {
             return vec![false; regions.len()];
         }
-        let below: Option<Vec<&Layer>> = layer
-            .rests_on
-            .iter()
-            .map(|&i| {
-                self.below_layers
-                    .iter()
-                    .find(|b| b.index == i && b.kind == layer.kind)
-            })
-            .collect();
-        let Some(below) = below.filter(|b| !b.is_empty()) else {
+        let below = resting_on(&self.below_layers, layer);
+        let Some(below) = Some(below).filter(|b| !b.is_empty()) else {
             return vec![false; regions.len()];
         };
         let c = crate::check::check_layer(
@@ -1803,17 +1805,7 @@ impl PoaPass<'_> {
             self.plan(d, area(), &left, &chosen)
         };
         let layer = &d.layer;
-        // The layers this one rests on, all of them kept, or none (no end anchored or cut).
-        let below: Vec<&Layer> = layer
-            .rests_on
-            .iter()
-            .map(|&i| {
-                self.below_layers
-                    .iter()
-                    .find(|b| b.index == i && b.kind == layer.kind)
-            })
-            .collect::<Option<Vec<&Layer>>>()
-            .unwrap_or_default();
+        let below = resting_on(&self.below_layers, layer);
         let (rewrites, held) = drop_held(
             layer,
             &below,
