@@ -513,21 +513,89 @@ pub fn check_layer(
     opts: &CheckOptions,
     keep_samples: bool,
 ) -> LayerCheck {
+    check_within(below, layer, filament_area, opts, keep_samples, None)
+}
+
+/// In-air length (mm) of the strands of `layer` that come within `window` (min, max
+/// corners), judged as [`check_layer`] judges them: only what lies near the window is
+/// looked at (a rewritten region's neighbourhood on a plate-wide layer).
+pub fn in_air_within(
+    below: &[&Layer],
+    layer: &Layer,
+    filament_area: f64,
+    window: ([f64; 2], [f64; 2]),
+) -> f64 {
+    let opts = CheckOptions::default();
+    check_within(below, layer, filament_area, &opts, false, Some(window)).in_air_mm
+}
+
+/// Whether the box `a` meets the box `b` grown by `m`.
+fn boxes_meet(a: ([f64; 2], [f64; 2]), b: ([f64; 2], [f64; 2]), m: f64) -> bool {
+    a.0[0] <= b.1[0] + m && a.1[0] >= b.0[0] - m && a.0[1] <= b.1[1] + m && a.1[1] >= b.0[1] - m
+}
+
+/// The box of `points`.
+fn points_bounds(points: &[[f64; 2]]) -> ([f64; 2], [f64; 2]) {
+    points.iter().fold(
+        ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]),
+        |(lo, hi), p| {
+            (
+                [lo[0].min(p[0]), lo[1].min(p[1])],
+                [hi[0].max(p[0]), hi[1].max(p[1])],
+            )
+        },
+    )
+}
+
+/// Margin (mm) round a check's window within which the layer below still holds a strand
+/// of it: more than any bead's half width.
+const WINDOW_MARGIN: f64 = 6.0;
+
+fn check_within(
+    below: &[&Layer],
+    layer: &Layer,
+    filament_area: f64,
+    opts: &CheckOptions,
+    keep_samples: bool,
+    window: Option<([f64; 2], [f64; 2])>,
+) -> LayerCheck {
     let mut result = LayerCheck {
         layer: layer.index + 1,
         z: layer.z,
         ..Default::default()
     };
-    let (min, max) = bounds(below.iter().copied().chain(std::iter::once(layer)));
+    // Paths that come within the window are judged whole (their runs need their ends).
+    let judged = |p: &Path| window.is_none_or(|w| boxes_meet(points_bounds(&p.points), w, 0.0));
+    let (min, max) = match window {
+        Some(_) => {
+            let near: Vec<[f64; 2]> = layer
+                .paths
+                .iter()
+                .filter(|p| judged(p))
+                .flat_map(|p| p.points.iter().copied())
+                .collect();
+            let (lo, hi) = points_bounds(&near);
+            if lo[0] > hi[0] {
+                return result;
+            }
+            (
+                [lo[0] - WINDOW_MARGIN, lo[1] - WINDOW_MARGIN],
+                [hi[0] + WINDOW_MARGIN, hi[1] + WINDOW_MARGIN],
+            )
+        }
+        None => bounds(below.iter().copied().chain(std::iter::once(layer))),
+    };
     let mut grid = Grid::new(1.0, min, max);
     let on_bed = layer.on_bed();
     for b in below {
         for s in segments(b, filament_area) {
-            grid.insert(s);
+            if window.is_none() || boxes_meet(points_bounds(&[s.a, s.b]), (min, max), 0.0) {
+                grid.insert(s);
+            }
         }
     }
     let mut volume = 0.0;
-    for path in &layer.paths {
+    for path in layer.paths.iter().filter(|p| judged(p)) {
         // (distance along the path, sample, supported?)
         let mut samples: Vec<(f64, Sample, bool)> = Vec::new();
         // The path's own segments wait until they are two widths behind.
@@ -837,6 +905,33 @@ mod tests {
             false,
         );
         assert!(on.in_air_mm > 2.0, "{on:?}");
+    }
+
+    #[test]
+    fn a_window_judges_the_strands_that_come_near_it_as_the_whole_check_does() {
+        let fa = filament_area(1.75);
+        let below = disk(5.0);
+        let above = rings(4.9, 8.0, 0.45);
+        let whole = check_layer(&[&below], &above, fa, &CheckOptions::default(), false);
+        assert!(whole.in_air_mm > 10.0, "{whole:?}");
+        // A strand is judged whole when its box meets the window: every ring's box holds
+        // the centre.
+        let all = in_air_within(&[&below], &above, fa, ([-1.0, -1.0], [1.0, 1.0]));
+        assert!((all - whole.in_air_mm).abs() < 1e-6, "{all}");
+        let over = in_air_within(&[&below], &above, fa, ([-9.0, -9.0], [9.0, 9.0]));
+        assert!(
+            (over - whole.in_air_mm).abs() < 1e-6,
+            "{over} vs {}",
+            whole.in_air_mm
+        );
+        // A window on one side still judges the rings crossing it in full.
+        let side = in_air_within(&[&below], &above, fa, ([7.0, -0.5], [9.0, 0.5]));
+        assert!(side > 0.0 && side <= whole.in_air_mm + 1e-6, "{side}");
+        // Far away: nothing.
+        assert_eq!(
+            in_air_within(&[&below], &above, fa, ([50.0, 50.0], [60.0, 60.0])),
+            0.0
+        );
     }
 
     #[test]

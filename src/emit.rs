@@ -1221,6 +1221,10 @@ fn near_polyline(p: [f64; 2], line: &[[f64; 2]], r: f64) -> bool {
     })
 }
 
+/// How much more in air (mm) a rewritten layer may print than the slicer's before it is
+/// sent out as sliced: a guard, never met on the held-out parts.
+const WORSE_IN_AIR: f64 = 0.5;
+
 /// Length (mm) of a bridge's slicer strands the deposition check may find in air before
 /// `--bridges auto` rewrites it: the acceptance's own mark for what a layer may keep in air.
 const HANGING_BRIDGE: f64 = 1.0;
@@ -1592,6 +1596,38 @@ impl<'a> PoaPass<'a> {
             .collect()
     }
 
+    /// `Some((as sliced, as rewritten))` in-air lengths (mm) when the deposition check finds
+    /// the layer as rewritten (`back`) more than [`WORSE_IN_AIR`] mm farther in air than as
+    /// sliced, over the layers it rests on as printed.
+    fn worse_in_air(
+        &self,
+        layer: &Layer,
+        below: &[&Layer],
+        back: &Layer,
+        zones: &[&MultiPolygon<f64>],
+    ) -> Option<(f64, f64)> {
+        use geo::BoundingRect;
+        if below.is_empty() {
+            return None;
+        }
+        // Only near the regions: a plate-wide layer costs as much to judge as its region
+        // search.
+        let window = zones
+            .iter()
+            .filter_map(|z| z.bounding_rect())
+            .map(|b| ([b.min().x, b.min().y], [b.max().x, b.max().y]))
+            .reduce(|a, b| {
+                (
+                    [a.0[0].min(b.0[0]), a.0[1].min(b.0[1])],
+                    [a.1[0].max(b.1[0]), a.1[1].max(b.1[1])],
+                )
+            })?;
+        let fa = self.motion.filament_area;
+        let after = crate::check::in_air_within(below, back, fa, window);
+        let before = crate::check::in_air_within(below, layer, fa, window);
+        (after > before + WORSE_IN_AIR).then_some((before, after))
+    }
+
     /// The name of object number `o`, as the file labels it.
     fn object_name(&self, o: Option<u32>) -> Option<String> {
         o.and_then(|o| self.report.objects.get(o as usize).cloned())
@@ -1865,8 +1901,36 @@ impl PoaPass<'_> {
                 &self.motion,
                 &self.opts.settings,
             );
+            let back = reread(layer, &bytes, &self.config);
+            // Judged where a plan moves the outline (a gradual overhang's, or one on a layer
+            // whose own support moved): the wide plans of a first floating layer grow from
+            // the wall below and cost a plate's worth of samples to judge.
+            let judged = above_rewrite || rewrites.iter().any(|r| r.plan.with_perimeter);
+            if let Some(worse) = back.as_ref().filter(|_| judged).and_then(|b| {
+                let zones: Vec<&MultiPolygon<f64>> =
+                    rewrites.iter().map(|r| &r.plan.zone).collect();
+                self.worse_in_air(layer, &below, b, &zones)
+            }) {
+                // Never worse than the slicer: the layer goes out as sliced.
+                for r in &rewrites {
+                    self.report.skipped.push(SkippedRegion {
+                        region: r.id,
+                        layer: layer.index + 1,
+                        kind: r.kind,
+                        reason: format!(
+                            "rewritten, the layer would print {:.1} mm in air, {:.1} as sliced",
+                            worse.1, worse.0
+                        ),
+                    });
+                }
+                self.rewritten_below = None;
+                self.reread = None;
+                self.limits.track_limits(&layer.raw);
+                self.note_wall_width(layer);
+                return Ok(None);
+            }
             self.account(layer, &bytes, stats);
-            self.reread = reread(layer, &bytes, &self.config);
+            self.reread = back;
             // The layer above is planned on what this layer prints as written: the area
             // made from the plan alone keeps, in places, the slicer's perimeter that the
             // splice took out (an edge a loop above then grew from, in air).
