@@ -1560,9 +1560,9 @@ impl<'a> PoaPass<'a> {
             return vec![false; regions.len()];
         }
         let below = resting_on(&self.below_layers, layer);
-        let Some(below) = Some(below).filter(|b| !b.is_empty()) else {
+        if below.is_empty() {
             return vec![false; regions.len()];
-        };
+        }
         let c = crate::check::check_layer(
             &below,
             layer,
