@@ -265,6 +265,15 @@ pub fn opening(mp: &MultiPolygon<f64>, r: f64) -> MultiPolygon<f64> {
     offset(&offset(mp, -r), r)
 }
 
+/// Morphological closing: fills every gap and notch narrower than `2 r`, keeps the rest's
+/// shape (up to rounding of concave corners by `r`).
+pub fn closing(mp: &MultiPolygon<f64>, r: f64) -> MultiPolygon<f64> {
+    if r <= 0.0 {
+        return mp.clone();
+    }
+    offset(&offset(mp, r), -r)
+}
+
 /// A polyline in mm.
 pub type Polyline = Vec<[f64; 2]>;
 

@@ -19,8 +19,8 @@ use geo::{Area, MultiPolygon};
 use serde::Serialize;
 
 use crate::geometry::{
-    clip_lines, difference, grow_within, intersection, near, offset, opening, rings, union,
-    Polyline, Region, RegionKind,
+    clip_lines, closing, difference, grow_within, intersection, near, offset, opening, rings,
+    union, Polyline, Region, RegionKind,
 };
 
 /// What to do with regions anchored on two or more sides.
@@ -221,15 +221,12 @@ pub fn plan(
     // Gaps narrower than half a bead in what the layer prints are no gaps (beads squash
     // into them): closed, so that an island of walls the slicer set 0.07 mm off the skin (a
     // slot's walls by Cura, outer wall first) is part of the outline the perimeter follows.
-    let area_loc = offset(
-        &offset(
-            &intersection(
-                &near(area, &hint_box, 2.0 * we + 2.0),
-                &boxed(&hint_box, 2.0 * we + 2.0),
-            ),
-            w / 4.0,
+    let area_loc = closing(
+        &intersection(
+            &near(area, &hint_box, 2.0 * we + 2.0),
+            &boxed(&hint_box, 2.0 * we + 2.0),
         ),
-        -w / 4.0,
+        w / 4.0,
     );
 
     // The zone: what sectB prints beyond sectA around this region, slivers dropped.
