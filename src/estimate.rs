@@ -53,6 +53,24 @@ pub struct Limits {
     pub travel: f64,
 }
 
+/// Whether a firmware of `flavor` (lower case, as PrusaSlicer or Cura name it) reads M203 in
+/// mm/s: the Marlin family (Cura's UltiGCode and Griffin run Marlin derivatives) and
+/// Smoothie; RepRapFirmware and the older firmwares read mm/min. Cura writes
+/// `M203 X500 Y500` for a Creality CR-10: read as mm/min it capped every move at 8 mm/s.
+fn m203_per_second(flavor: &str) -> bool {
+    matches!(
+        flavor,
+        "" | "marlin"
+            | "marlin2"
+            | "marlinlegacy"
+            | "smoothie"
+            | "reprap (marlin/sprinter)"
+            | "ultigcode"
+            | "griffin"
+            | "reprap (volumetric)"
+    )
+}
+
 /// Firmware defaults when a file states no limits (PrusaSlicer's defaults, which are those of
 /// a typical Marlin printer).
 impl Default for Limits {
@@ -78,13 +96,18 @@ impl Limits {
     /// Limits from a slicer's config block (PrusaSlicer, SuperSlicer, OrcaSlicer keys).
     pub fn from_config(config: &SlicerConfig) -> Limits {
         let mut l = Limits::default();
-        let flavor = config.get("gcode_flavor").unwrap_or("").trim().to_string();
+        // PrusaSlicer writes `marlin2`, Cura `Marlin` or `RepRap (Marlin/Sprinter)`.
+        let flavor = config
+            .get("gcode_flavor")
+            .unwrap_or("")
+            .trim()
+            .to_ascii_lowercase();
         let usage = config
             .get("machine_limits_usage")
             .unwrap_or("time_estimate_only")
             .trim()
             .to_string();
-        l.m203_per_second = matches!(flavor.as_str(), "marlin" | "marlin2" | "smoothie" | "");
+        l.m203_per_second = m203_per_second(&flavor);
         let uses_limits = matches!(
             flavor.as_str(),
             "marlin" | "marlin2" | "reprapfirmware" | "klipper"
@@ -753,6 +776,27 @@ mod tests {
 
     fn est(text: &str) -> f64 {
         estimate_text(text.as_bytes(), &SlicerConfig::default())
+    }
+
+    #[test]
+    fn cura_marlin_reads_m203_in_mm_per_second() {
+        // 100 mm at 50 mm/s: the cap of 500 mm/s changes nothing; read as mm/min (8.3 mm/s)
+        // it would take 12 s.
+        let text = "G1 F3000\nG1 X100 E5\n";
+        let plain = est(text);
+        for flavor in ["Marlin", "RepRap (Marlin/Sprinter)", "marlin2", "Griffin"] {
+            let head = format!(";FLAVOR:{flavor}\nM203 X500 Y500 Z10 E50\n{text}");
+            let config = SlicerConfig::parse(head.as_bytes());
+            let t = estimate_text(head.as_bytes(), &config);
+            assert!((t - plain).abs() < 1e-6, "{flavor}: {t} vs {plain}");
+        }
+        // RepRapFirmware reads mm/min: M203 X3000 is 50 mm/s, no cap either.
+        let head = format!("; gcode_flavor = reprapfirmware\nM203 X3000 Y3000\n{text}");
+        let config = SlicerConfig::parse(head.as_bytes());
+        assert!((estimate_text(head.as_bytes(), &config) - plain).abs() < 1e-6);
+        let head = format!("; gcode_flavor = reprapfirmware\nM203 X600 Y600\n{text}");
+        let config = SlicerConfig::parse(head.as_bytes());
+        assert!(estimate_text(head.as_bytes(), &config) > 9.9);
     }
 
     #[test]
