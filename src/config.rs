@@ -15,6 +15,8 @@ pub struct SlicerConfig {
     values: HashMap<String, String>,
     /// Keys that came from the environment.
     from_env: Vec<String>,
+    /// Keys poa inferred from the file's moves (the file states none), with why.
+    inferred: Vec<(String, String)>,
 }
 
 /// How many bytes of the head and of the tail of a file hold its configuration.
@@ -108,6 +110,18 @@ impl SlicerConfig {
 
     pub fn get(&self, key: &str) -> Option<&str> {
         self.values.get(key).map(String::as_str)
+    }
+
+    /// Sets `key` to a value poa inferred (the file and the environment state none), saying
+    /// why in `why` (shown by `poa info` and after `poa process`).
+    pub fn infer(&mut self, key: &str, value: &str, why: String) {
+        self.values.insert(key.to_string(), value.to_string());
+        self.inferred.push((key.to_string(), why));
+    }
+
+    /// The values inferred by [`SlicerConfig::infer`]: (key, why).
+    pub fn inferred(&self) -> &[(String, String)] {
+        &self.inferred
     }
 
     pub fn is_from_env(&self, key: &str) -> bool {

@@ -1332,6 +1332,9 @@ pub struct ProcessReport {
     pub filament_added_g: f64,
     pub time_added_s: f64,
     pub layers: usize,
+    /// What poa assumed where the file is silent (a filament diameter read from the walls'
+    /// E), one line each.
+    pub notes: Vec<String>,
     /// Where in the output time was added, for the progress lines.
     #[serde(skip)]
     pub progress: Vec<crate::progress::Added>,
@@ -2099,6 +2102,11 @@ pub fn process<R: BufRead + Send, W: Write>(
     output: &mut W,
 ) -> io::Result<ProcessReport> {
     let mut pass = PoaPass::new(&config, opts);
+    pass.report.notes = config
+        .inferred()
+        .iter()
+        .map(|(_, why)| why.clone())
+        .collect();
     let filament_area = pass.motion.filament_area;
     let density = config.filament_density();
     let mut reader = crate::layers::LayerReader::new(

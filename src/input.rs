@@ -85,6 +85,10 @@ pub fn open(path: &Path) -> Result<Opened> {
         config.add_text(&tail);
     }
     config.apply_env(std::env::vars());
+    if config.filament_diameter_unstated() {
+        file.seek(SeekFrom::Start(0)).map_err(read_err)?;
+        infer_filament_diameter(&mut file, &mut config).map_err(read_err)?;
+    }
     config.check()?;
     file.seek(SeekFrom::Start(0)).map_err(read_err)?;
     Ok(Opened {
@@ -95,6 +99,78 @@ pub fn open(path: &Path) -> Result<Opened> {
         size,
         binary: None,
     })
+}
+
+/// How much of a file [`infer_filament_diameter`] reads at most: the external perimeters of
+/// the first layers above the first one.
+const FILAMENT_SCAN_BYTES: u64 = 8 << 20;
+/// External perimeter paths sampled (longer than 1 mm, above the first layer).
+const FILAMENT_SAMPLES: usize = 64;
+/// Fewest samples a decision is made on.
+const FILAMENT_MIN_SAMPLES: usize = 16;
+
+/// Where a file states no filament diameter (Cura for Marlin-flavour printers, Lulzbot and
+/// older Ultimaker profiles among them), E is read as 1.75 mm filament. A file sliced for
+/// 2.85 mm filament then reads as walls 0.4 of the nozzle wide (2.65 times too little
+/// material), and poa's loops would be laid with 2.65 times the slicer's flow. When the
+/// median external perimeter reads narrower than 0.55 of the nozzle at 1.75 mm and 0.7 to
+/// 1.8 nozzles wide at 2.85 mm, the file is read as 2.85 mm filament and the config says so
+/// ([`SlicerConfig::inferred`]). Reads at most [`FILAMENT_SCAN_BYTES`] of `input`.
+pub fn infer_filament_diameter<R: Read>(
+    input: R,
+    config: &mut SlicerConfig,
+) -> std::io::Result<()> {
+    use crate::layers::{filament_area, flow_width, LayerKind, LayerReader, ReaderOptions, Role};
+    let nozzle = config.nozzle_diameter();
+    let reader = LayerReader::new(
+        BufReader::with_capacity(READ_BUFFER, input.take(FILAMENT_SCAN_BYTES)),
+        ReaderOptions {
+            keep_raw: false,
+            config: config.clone(),
+        },
+    );
+    // Cross-sections (mm2 of bead at 1.75 mm filament) with their heights.
+    let area = filament_area(1.75);
+    let mut samples: Vec<(f64, f64)> = Vec::with_capacity(FILAMENT_SAMPLES);
+    for layer in reader {
+        let layer = match layer {
+            Ok(l) => l,
+            // A file cut short or malformed is judged on what was read; the pipeline reports
+            // the error itself.
+            Err(_) => break,
+        };
+        if layer.kind != LayerKind::Layer || layer.index == 0 {
+            continue;
+        }
+        for p in &layer.paths {
+            let length = p.length();
+            let e: f64 = p.seg_e.iter().sum();
+            if p.role == Role::ExternalPerimeter && length > 1.0 && e > 0.0 && p.height > 0.0 {
+                samples.push((flow_width(e, length, p.height, area), p.height));
+            }
+        }
+        if samples.len() >= FILAMENT_SAMPLES {
+            break;
+        }
+    }
+    if samples.len() < FILAMENT_MIN_SAMPLES {
+        return Ok(());
+    }
+    samples.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let (w175, h) = samples[samples.len() / 2];
+    // Same bead, 2.65 times the cross-section: the flow model's rounded ends stay.
+    let ends = h * (1.0 - std::f64::consts::FRAC_PI_4);
+    let w285 = (w175 - ends) * filament_area(2.85) / area + ends;
+    if w175 < 0.55 * nozzle && (0.7 * nozzle..=1.8 * nozzle).contains(&w285) {
+        config.infer(
+            "filament_diameter",
+            "2.85",
+            format!(
+                "the file states no filament diameter; its walls read {w175:.2} mm wide at 1.75 mm and {w285:.2} mm at 2.85 mm (nozzle {nozzle} mm): E is read as 2.85 mm filament (set SLIC3R_FILAMENT_DIAMETER to say otherwise)"
+            ),
+        );
+    }
+    Ok(())
 }
 
 /// Reads a whole regular file (up to the size it had when opened), refusing devices, FIFOs
@@ -307,4 +383,48 @@ fn check_has_commands(
     } else {
         "it holds no G-code command (G, M or T); pass the G-code file the slicer exported".into()
     }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Thirty layers of a 10 mm square wall 0.45 mm wide and 0.2 mm high, with E for
+    /// filament of `diameter`.
+    fn walls(diameter: f64) -> String {
+        let area = (0.45 - 0.2 * (1.0 - std::f64::consts::FRAC_PI_4)) * 0.2;
+        let per_mm = area / crate::layers::filament_area(diameter);
+        let mut g = String::from(";FLAVOR:Marlin\nM83\n");
+        for l in 0..30 {
+            g.push_str(&format!(
+                ";LAYER:{l}\nG0 Z{:.1} X0 Y0\n;TYPE:WALL-OUTER\n",
+                0.2 * (l + 1) as f64
+            ));
+            for (x, y) in [(10, 0), (10, 10), (0, 10), (0, 0)] {
+                g.push_str(&format!("G1 X{x} Y{y} E{:.5}\n", 10.0 * per_mm));
+            }
+        }
+        g
+    }
+
+    #[test]
+    fn a_2_85_mm_file_is_told_from_its_walls() {
+        for (diameter, inferred) in [(2.85, true), (1.75, false)] {
+            let text = walls(diameter);
+            let mut config = SlicerConfig::parse(text.as_bytes());
+            assert!(config.filament_diameter_unstated());
+            infer_filament_diameter(text.as_bytes(), &mut config).unwrap();
+            assert_eq!(config.filament_diameter() == 2.85, inferred, "{diameter}");
+            assert_eq!(config.inferred().len(), usize::from(inferred));
+        }
+        // Too few walls to judge: nothing assumed.
+        let text: String = walls(2.85)
+            .lines()
+            .take(40)
+            .map(|l| format!("{l}\n"))
+            .collect();
+        let mut config = SlicerConfig::parse(text.as_bytes());
+        infer_filament_diameter(text.as_bytes(), &mut config).unwrap();
+        assert!(config.inferred().is_empty());
+    }
 }

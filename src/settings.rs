@@ -558,6 +558,8 @@ pub fn describe(eff: &Effective, config: &SlicerConfig) -> String {
         let v = config.get(key).unwrap_or("(not set)");
         let src = if config.is_from_env(key) {
             "SLIC3R_ variable"
+        } else if config.inferred().iter().any(|(k, _)| k == key) {
+            "inferred from the walls' E"
         } else if config.get(key).is_some() {
             "file"
         } else {

@@ -470,7 +470,17 @@ impl State {
             objects: Vec::new(),
             object_keys: Vec::new(),
             objects_changed: false,
-            diagnostics: Diagnostics::default(),
+            diagnostics: {
+                let mut d = Diagnostics::default();
+                if let Some((_, why)) = cfg
+                    .inferred()
+                    .iter()
+                    .find(|(k, _)| k == "filament_diameter")
+                {
+                    d.add("filament-diameter", 1, || why.clone());
+                }
+                d
+            },
             marker_kind: None,
             role_tag: None,
             cura_bridge: false,

@@ -174,13 +174,14 @@ fn ultigcode_counts_e_in_cubic_millimetres() {
     assert!(after.in_air_mm < 2.0, "{}", after.in_air_mm);
 }
 
-/// A Cura file for a 2.85 mm filament printer of Marlin flavour states no diameter: poa
-/// reads E as 1.75 mm filament, and says so where the walls then read far narrower than
-/// the nozzle makes (a 1.75 mm file says nothing).
+/// A Cura file for a 2.85 mm filament printer of Marlin flavour states no diameter: read as
+/// 1.75 mm filament its walls come out 0.4 of the nozzle wide, so poa reads it as 2.85 mm
+/// filament, says so, and lays its loops with the slicer's flow (read as 1.75 mm they
+/// carried 2.65 times the plastic). A 1.75 mm file is read as it is.
 #[test]
-fn an_unstated_2_85_mm_filament_is_pointed_out() {
+fn an_unstated_2_85_mm_filament_is_read_from_the_walls() {
     let dir = tempfile::tempdir().unwrap();
-    for (diameter, noted) in [("2.85", true), ("1.75", false)] {
+    for (diameter, inferred) in [("2.85", true), ("1.75", false)] {
         let setting = format!("material_diameter={diameter}");
         let Some(d) = slice_cura(&part("rect_overhang"), "creality_ender3", &[&setting]) else {
             return;
@@ -191,9 +192,53 @@ fn an_unstated_2_85_mm_filament_is_pointed_out() {
         assert!(o.status.success());
         let text = String::from_utf8_lossy(&o.stdout);
         assert_eq!(
-            text.contains("SLIC3R_FILAMENT_DIAMETER=2.85"),
-            noted,
+            text.contains("E is read as 2.85 mm filament"),
+            inferred,
             "{diameter} mm: {text}"
+        );
+        let out = dir.path().join(format!("d{diameter}.poa.gcode"));
+        let o = poa_to("process", &f, &out, &[]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        assert_eq!(
+            String::from_utf8_lossy(&o.stdout).contains("note: the file states no filament"),
+            inferred
+        );
+        // The output read with the diameter it was sliced for: poa's strands as wide as
+        // the slicer's walls give or take the loop width, not 2.65 times.
+        let data = read(&out);
+        let mut stated = format!("; filament_diameter = {diameter}\n").into_bytes();
+        stated.extend_from_slice(&data);
+        let blocks = poa_blocks(&stated);
+        assert!(!blocks.is_empty(), "{diameter} mm: nothing rewritten");
+        let (layers, _) = read_layers(&stated, false);
+        let (mut ours, mut walls) = (Vec::new(), Vec::new());
+        for p in layers.iter().flat_map(|l| l.paths.iter()) {
+            let length = p.length();
+            if length < 1.0 || p.height <= 0.0 {
+                continue;
+            }
+            let e: f64 = p.seg_e.iter().sum();
+            let w = printonair::layers::flow_width(
+                e,
+                length,
+                p.height,
+                printonair::layers::filament_area(diameter.parse().unwrap()),
+            );
+            let line = p.seg_line[0];
+            if blocks.iter().any(|&(a, b)| (a..=b).contains(&line)) {
+                ours.push(w);
+            } else if p.role == printonair::layers::Role::ExternalPerimeter {
+                walls.push(w);
+            }
+        }
+        let median = |v: &mut Vec<f64>| {
+            v.sort_by(f64::total_cmp);
+            v[v.len() / 2]
+        };
+        let (ours, walls) = (median(&mut ours), median(&mut walls));
+        assert!(
+            (0.75..=1.35).contains(&(ours / walls)),
+            "{diameter} mm: poa's strands {ours:.3} mm wide, the slicer's walls {walls:.3}"
         );
     }
 }

@@ -61,7 +61,7 @@ pub fn summary_line(
             file.display()
         );
     };
-    format!(
+    let mut line = format!(
         "{}: {} region{} found, {} rewritten with {} loops{}; filament {:+.1} mm, time {:+.0} s{}\n",
         file.display(),
         r.regions_found,
@@ -82,7 +82,11 @@ pub fn summary_line(
         } else {
             ""
         }
-    )
+    );
+    for note in &r.notes {
+        line.push_str(&format!("  note: {note}\n"));
+    }
+    line
 }
 
 /// One line per region of a rewrite, for `-v`.
