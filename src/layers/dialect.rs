@@ -129,6 +129,15 @@ pub enum Role {
 }
 
 impl Role {
+    /// Roles a slicer may lay with bridge flow: a round bead as tall as it is wide, hanging
+    /// below the layer (PrusaSlicer's thick bridges).
+    pub fn is_bridge_flow(self) -> bool {
+        matches!(
+            self,
+            Role::OverhangPerimeter | Role::BridgeInfill | Role::InternalBridge
+        )
+    }
+
     pub const ALL: [Role; 15] = [
         Role::ExternalPerimeter,
         Role::Perimeter,

@@ -1046,7 +1046,14 @@ impl State {
         // A layer marker's height may be the step from the layer before (PrusaSlicer's
         // `;HEIGHT:` where objects of different layer heights interleave: 0.05 for a 0.2 mm
         // layer) while each extrusion states its own: the beads decide.
-        let bead = bead_height(&paths);
+        // Bridges laid with a round bead (PrusaSlicer's thick bridges: 0.39 mm tall in a
+        // 0.2 mm layer) hang into the air under the layer: they say nothing of its height nor
+        // of what it rests on, unless the layer holds nothing else.
+        let layer_beads = || paths.iter().filter(|p| !p.role.is_bridge_flow());
+        let bead = match bead_height(layer_beads()) {
+            0.0 => bead_height(&paths),
+            b => b,
+        };
         let height = if is_layer && bead > height * 1.1 + 1e-9 {
             bead
         } else {
@@ -1054,8 +1061,7 @@ impl State {
         };
         // What the layer rests on reaches down from its tallest bead (objects of different
         // layer heights sharing the layer: the tallest object's layer below is under it too).
-        let reach = paths
-            .iter()
+        let reach = layer_beads()
             .map(|p| p.height)
             .filter(|h| *h <= MAX_HEIGHT)
             .fold(height, f64::max);
@@ -1431,6 +1437,28 @@ M486 S3\nM486 Abox\nG1 X20 E1\nM486 S-1\n";
         assert!((l[2].height - 0.2).abs() < 1e-9, "{}", l[2].height);
         assert_eq!(l[2].rests_on, vec![1, 0]);
         assert!(!l[2].on_previous() && l[1].on_previous());
+    }
+
+    #[test]
+    fn thick_bridges_hang_below_the_layer_they_are_printed_in() {
+        // PrusaSlicer's thick bridges: the overhang perimeter's round bead is 0.39 mm tall in
+        // a 0.2 mm layer, and carries most of the layer's length. The layer is 0.2 mm and
+        // rests on the layer before it alone.
+        let src = ";LAYER_CHANGE\n;Z:0.2\n;HEIGHT:0.2\nG1 Z0.2\nG1 X0 Y0\nG1 X10 E1\n\
+                   ;LAYER_CHANGE\n;Z:0.4\n;HEIGHT:0.2\nG1 Z0.4\nG1 X0 Y0\nG1 X10 E2\n\
+                   ;LAYER_CHANGE\n;Z:0.6\n;HEIGHT:0.2\nG1 Z0.6\n;TYPE:External perimeter\n\
+                   G1 X0 Y0\nG1 X10 E3\n;TYPE:Overhang perimeter\n;HEIGHT:0.389872\n\
+                   G1 X10 Y30 E5\n";
+        let (layers, _) = read(src, false);
+        let l = layers_only(&layers);
+        assert_eq!(l.len(), 3);
+        assert!((l[2].height - 0.2).abs() < 1e-9, "{}", l[2].height);
+        assert_eq!(l[2].rests_on, vec![1]);
+        // The bead keeps its own height.
+        assert!(l[2]
+            .paths
+            .iter()
+            .any(|p| (p.height - 0.389872).abs() < 1e-9));
     }
 
     #[test]

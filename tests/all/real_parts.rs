@@ -480,6 +480,34 @@ fn an_arch_and_a_hole_ceiling_are_held_up_to_their_crown() {
     }
 }
 
+/// PrusaSlicer's thick bridges lay overhang perimeters and bridges with a round bead as tall
+/// as the nozzle (0.39 mm in a 0.2 mm layer). Such a layer once read as resting on the two
+/// layers under it, so the layer over a moved gradual perimeter was planned on the layer
+/// below as sliced, and its first loop hung 0.38 mm past the moved perimeter (a nut trap's
+/// closing layer: 20.7 -> 64.1 mm in air).
+#[test]
+fn thick_bridges_rest_on_the_layer_below_and_the_hole_closes_on_moved_perimeters() {
+    let Some(d) = slice("arch_hole", &["--thick-bridges", "--perimeters", "4"]) else {
+        return;
+    };
+    let layers = all_layers(&d);
+    for l in layers
+        .iter()
+        .filter(|l| l.kind == LayerKind::Layer && l.index > 0)
+    {
+        assert!(
+            l.on_previous() && (l.height - 0.2).abs() < 0.01,
+            "layer {} (Z {}): height {}, rests on {:?}",
+            l.index + 1,
+            l.z,
+            l.height,
+            l.rests_on
+        );
+    }
+    let (what, before, after) = judge_one("arch_hole by PrusaSlicer, thick bridges".into(), &d);
+    cut_to(&what, &before, &after, 0.5);
+}
+
 /// Every layer the slicer left more than `over` mm in air has at most 1 mm left.
 /// The rewrite leaves less than `share` of what the slicer printed in air.
 fn cut_to(what: &str, before: &CheckReport, after: &CheckReport, share: f64) {
