@@ -1699,26 +1699,44 @@ impl<'a> PoaPass<'a> {
         } else {
             below
         };
-        // A floating region within a bead of a rewritten one (walls round a slot in it) is
-        // planned with it; the regions left as sliced keep their strands.
+        // A floating region within a bead of a rewritten one (walls round a slot in it), or
+        // of a floating region planned with it (thick bridges' rings, each an island of its
+        // own: the outermost left as sliced hung past the loops), is planned with it; the
+        // regions left as sliced keep their strands.
         let mut absorbed: Vec<(usize, usize)> = Vec::new();
         let others: Vec<crate::poa::Others> = chosen
             .iter()
             .map(|(id, r)| {
                 use geo::Intersects;
-                let near = crate::geometry::offset(
-                    &MultiPolygon::new(vec![r.polygon.clone()]),
-                    widths.loop_width,
-                );
+                let grow = |p: &geo::Polygon<f64>| {
+                    crate::geometry::offset(&MultiPolygon::new(vec![p.clone()]), widths.loop_width)
+                };
+                let mut near = vec![grow(&r.polygon)];
+                let mut joined = vec![false; left.len()];
+                // Each pass joins the floating regions next to what is joined so far.
+                loop {
+                    let mut grew = false;
+                    for (k, (_, f)) in left.iter().enumerate() {
+                        let joins = !joined[k]
+                            && f.kind == RegionKind::Floating
+                            && self
+                                .opts
+                                .objects
+                                .allows(self.object_name(f.object).as_deref())
+                            && near.iter().any(|n| n.intersects(&f.polygon));
+                        if joins {
+                            joined[k] = true;
+                            near.push(grow(&f.polygon));
+                            grew = true;
+                        }
+                    }
+                    if !grew {
+                        break;
+                    }
+                }
                 let mut o = crate::poa::Others::default();
-                for (fid, f) in left {
-                    let joins = f.kind == RegionKind::Floating
-                        && self
-                            .opts
-                            .objects
-                            .allows(self.object_name(f.object).as_deref())
-                        && near.intersects(&f.polygon);
-                    if joins {
+                for ((fid, f), joined) in left.iter().zip(joined) {
+                    if joined {
                         o.absorb.0.push(f.polygon.clone());
                         absorbed.push((*fid, *id));
                     } else {

@@ -508,6 +508,32 @@ fn thick_bridges_rest_on_the_layer_below_and_the_hole_closes_on_moved_perimeters
     cut_to(&what, &before, &after, 0.5);
 }
 
+/// With thick bridges PrusaSlicer rings a plate's floating layer with overhang perimeters
+/// whose round beads leave hairline gaps: each ring is an island, a floating region of its
+/// own. Those next to the plate's region, ring after ring, are planned with it; the outermost
+/// one, left as sliced, hung 0.35 mm past the loops (130 mm in air).
+#[test]
+fn a_plate_ringed_by_thick_bridge_perimeters_is_planned_to_its_edge() {
+    let args = [
+        "--thick-bridges",
+        "--perimeters",
+        "4",
+        "--fill-pattern",
+        "cubic",
+        "--fill-density",
+        "30%",
+        "--top-fill-pattern",
+        "concentric",
+        "--seam-position",
+        "rear",
+    ];
+    let Some(d) = slice("plate_windows", &args) else {
+        return;
+    };
+    let (what, before, after) = judge_one("plate_windows by PrusaSlicer, thick bridges".into(), &d);
+    held_up(&what, &before, &after, 10.0);
+}
+
 /// Every layer the slicer left more than `over` mm in air has at most 1 mm left.
 /// The rewrite leaves less than `share` of what the slicer printed in air.
 fn cut_to(what: &str, before: &CheckReport, after: &CheckReport, share: f64) {
