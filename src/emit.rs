@@ -149,6 +149,8 @@ fn replaced(role: Role) -> bool {
 struct Tags {
     role: Option<String>,
     width: Option<String>,
+    /// PrusaSlicer's `;HEIGHT:`, which its thick bridges set to the round bead's height.
+    height: Option<String>,
 }
 
 impl Tags {
@@ -159,6 +161,8 @@ impl Tags {
             self.role = text();
         } else if t.starts_with(b";WIDTH:") || t.starts_with(b"; LINE_WIDTH:") {
             self.width = text();
+        } else if t.starts_with(b";HEIGHT:") {
+            self.height = text();
         }
     }
 }
@@ -1049,6 +1053,18 @@ fn emit_block(
         plan.strands.len()
     ));
     w.line(";TYPE:Overhang perimeter");
+    // A file that tags bead heights says the loops' own: after a thick bridge's
+    // `;HEIGHT:0.39` in a 0.2 mm layer, a reader took them for beads half as wide.
+    // (Only where the last tag says otherwise: most blocks follow a `;HEIGHT:` of the layer.)
+    let tagged = tags.height.as_deref().and_then(|t| {
+        t.strip_prefix(";HEIGHT:")
+            .and_then(|v| v.trim().parse::<f64>().ok())
+    });
+    let height_tagged = tags.height.is_some()
+        && tagged.is_none_or(|h| (h - rewrite.height).abs() > 1e-3);
+    if height_tagged {
+        w.line(&format!(";HEIGHT:{}", fmt_num(rewrite.height, 3)));
+    }
     let was_retracted = before.is_retracted();
     // What the block pushes back at its start and pulls back at its end: the file's own
     // retraction, never more than any printer retracts (a wrong count must not push metres
@@ -1161,6 +1177,9 @@ fn emit_block(
         w.line(tag);
     }
     if let Some(tag) = &tags.width {
+        w.line(tag);
+    }
+    if let Some(tag) = tags.height.as_ref().filter(|_| height_tagged) {
         w.line(tag);
     }
     w.line(";POA_END");

@@ -508,6 +508,53 @@ fn thick_bridges_rest_on_the_layer_below_and_the_hole_closes_on_moved_perimeters
     cut_to(&what, &before, &after, 0.5);
 }
 
+/// Thick bridges again, on gradual slopes of 30 to 75 degrees: a moved perimeter written
+/// after the slicer's `;HEIGHT:0.39` read as a bead 0.29 mm wide instead of 0.45, so the
+/// check (and poa reading its own layer back) took the perimeter above for hanging (0 ->
+/// 9 mm in air on two layers). poa's strands say their own height.
+#[test]
+fn strands_written_after_a_thick_bridge_say_their_own_height() {
+    let args = [
+        "--thick-bridges",
+        "--perimeters",
+        "4",
+        "--fill-pattern",
+        "cubic",
+        "--fill-density",
+        "30%",
+        "--top-fill-pattern",
+        "concentric",
+        "--seam-position",
+        "rear",
+    ];
+    let Some(d) = slice("slope_steps", &args) else {
+        return;
+    };
+    let (what, before, after) = judge_one("slope_steps by PrusaSlicer, thick bridges".into(), &d);
+    assert!(
+        after.in_air_mm <= 1.0,
+        "{what}: {:.1} mm in air, {:.1} before",
+        after.in_air_mm,
+        before.in_air_mm
+    );
+    let (new, _) = rewrite(&d, BridgeMode::Auto);
+    let blocks = poa_blocks(&new);
+    assert!(!blocks.is_empty());
+    let mut ours = 0;
+    for p in all_layers(&new).iter().flat_map(|l| l.paths.iter()) {
+        let line = p.seg_line.first().copied().unwrap_or(0);
+        if blocks.iter().any(|&(a, b)| (a..=b).contains(&line)) {
+            ours += 1;
+            assert!(
+                (p.height - 0.2).abs() < 0.01,
+                "line {line}: height {}",
+                p.height
+            );
+        }
+    }
+    assert!(ours > 0);
+}
+
 /// With thick bridges PrusaSlicer rings a plate's floating layer with overhang perimeters
 /// whose round beads leave hairline gaps: each ring is an island, a floating region of its
 /// own. Those next to the plate's region, ring after ring, are planned with it; the outermost
