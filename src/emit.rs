@@ -1060,8 +1060,8 @@ fn emit_block(
         t.strip_prefix(";HEIGHT:")
             .and_then(|v| v.trim().parse::<f64>().ok())
     });
-    let height_tagged = tags.height.is_some()
-        && tagged.is_none_or(|h| (h - rewrite.height).abs() > 1e-3);
+    let height_tagged =
+        tags.height.is_some() && tagged.is_none_or(|h| (h - rewrite.height).abs() > 1e-3);
     if height_tagged {
         w.line(&format!(";HEIGHT:{}", fmt_num(rewrite.height, 3)));
     }

@@ -514,20 +514,7 @@ fn thick_bridges_rest_on_the_layer_below_and_the_hole_closes_on_moved_perimeters
 /// 9 mm in air on two layers). poa's strands say their own height.
 #[test]
 fn strands_written_after_a_thick_bridge_say_their_own_height() {
-    let args = [
-        "--thick-bridges",
-        "--perimeters",
-        "4",
-        "--fill-pattern",
-        "cubic",
-        "--fill-density",
-        "30%",
-        "--top-fill-pattern",
-        "concentric",
-        "--seam-position",
-        "rear",
-    ];
-    let Some(d) = slice("slope_steps", &args) else {
+    let Some(d) = slice("slope_steps", THICK_BRIDGES) else {
         return;
     };
     let (what, before, after) = judge_one("slope_steps by PrusaSlicer, thick bridges".into(), &d);
@@ -555,26 +542,29 @@ fn strands_written_after_a_thick_bridge_say_their_own_height() {
     assert!(ours > 0);
 }
 
+/// PrusaSlicer with thick bridges, four perimeters, cubic infill, concentric top and the seam
+/// at the rear (a held-out settings set).
+const THICK_BRIDGES: &[&str] = &[
+    "--thick-bridges",
+    "--perimeters",
+    "4",
+    "--fill-pattern",
+    "cubic",
+    "--fill-density",
+    "30%",
+    "--top-fill-pattern",
+    "concentric",
+    "--seam-position",
+    "rear",
+];
+
 /// With thick bridges PrusaSlicer rings a plate's floating layer with overhang perimeters
 /// whose round beads leave hairline gaps: each ring is an island, a floating region of its
 /// own. Those next to the plate's region, ring after ring, are planned with it; the outermost
 /// one, left as sliced, hung 0.35 mm past the loops (130 mm in air).
 #[test]
 fn a_plate_ringed_by_thick_bridge_perimeters_is_planned_to_its_edge() {
-    let args = [
-        "--thick-bridges",
-        "--perimeters",
-        "4",
-        "--fill-pattern",
-        "cubic",
-        "--fill-density",
-        "30%",
-        "--top-fill-pattern",
-        "concentric",
-        "--seam-position",
-        "rear",
-    ];
-    let Some(d) = slice("plate_windows", &args) else {
+    let Some(d) = slice("plate_windows", THICK_BRIDGES) else {
         return;
     };
     let (what, before, after) = judge_one("plate_windows by PrusaSlicer, thick bridges".into(), &d);
