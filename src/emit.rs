@@ -167,6 +167,15 @@ impl Tags {
     }
 }
 
+/// A layer rewritten with wide regions only (its outline where the slicer put it, less the
+/// inset): its area as sliced, the zones rewritten and the strands laid there.
+struct WideBelow {
+    index: usize,
+    area: MultiPolygon<f64>,
+    zones: MultiPolygon<f64>,
+    strands: Vec<(Vec<[f64; 2]>, f64)>,
+}
+
 /// Layers kept for what the next layers rest on ([`PoaPass::keep_below`]).
 const KEEP_BELOW: usize = 8;
 
@@ -1465,6 +1474,9 @@ pub struct PoaPass<'a> {
     /// The last rewritten layer's index and its area as rewritten, which the layer above it
     /// is planned on.
     rewritten_below: Option<(usize, MultiPolygon<f64>)>,
+    /// The last layer rewritten with wide regions only: what its area as rewritten is made
+    /// of, made only if the layer above has regions of its own to plan on it.
+    wide_below: Option<WideBelow>,
     /// The strands of the layer before the one being rewritten, as read (the deposition
     /// model that trims sparse-infill ends over air stands on them); see [`PoaPass::keep_below`].
     below_layers: std::collections::VecDeque<Layer>,
@@ -1487,6 +1499,7 @@ impl<'a> PoaPass<'a> {
             limits: crate::estimate::Estimator::new(crate::estimate::Limits::from_config(config)),
             next_id: 0,
             rewritten_below: None,
+            wide_below: None,
             below_layers: std::collections::VecDeque::new(),
             reread: None,
             config: config.clone(),
@@ -1695,8 +1708,31 @@ impl<'a> PoaPass<'a> {
             outer_first: outer_first(layer),
         };
         let settings = &self.opts.settings;
-        let below = match &self.rewritten_below {
-            Some((i, area)) if i + 1 == layer.index && layer.on_previous() => area,
+        // Over a layer rewritten with wide regions, the loops grow from what it prints as
+        // rewritten (its perimeter pulled in by the inset, the loops out to it), while the
+        // regions stay those found on it as sliced: an elbow's third layer, outer wall
+        // first, grew from the slicer's perimeter below and hung past the moved one.
+        let over_wide = self
+            .wide_below
+            .as_ref()
+            .filter(|wb| wb.index + 1 == layer.index && layer.on_previous())
+            .map(|wb| {
+                let strands = wb.strands.iter().map(|(p, w)| (&p[..], *w));
+                let rewritten = crate::geometry::rewritten_area(&wb.area, &wb.zones, strands);
+                match self.reread.as_ref().filter(|r| r.index == wb.index) {
+                    Some(r) => {
+                        let printed = crate::geometry::printed_area(r, &self.opts.detect.area);
+                        crate::geometry::intersection(
+                            &rewritten,
+                            &crate::geometry::offset(&printed, REREAD_SLACK),
+                        )
+                    }
+                    None => rewritten,
+                }
+            });
+        let below = match (&self.rewritten_below, &over_wide) {
+            (Some((i, area)), _) if i + 1 == layer.index && layer.on_previous() => area,
+            (_, Some(area)) => area,
             // A layer with regions of its own always has the area below.
             _ => d.below.as_ref().unwrap_or(&crate::geometry::NO_AREA),
         };
@@ -1906,12 +1942,14 @@ impl PoaPass<'_> {
             .collect();
         // Only a gradual overhang's plan moves the outline the layer above stands on (a wide
         // region's loops fill its zone, and its perimeter's inset is within the tolerance):
-        // the layer as rewritten is made only then, since buffering every loop of a big
-        // region costs as much as the region search. (Planning the layer above a wide
-        // rewrite on it too put an elbow's third layer right, outer wall first, but made a
-        // bowl's thin ring over its first wide layer wide, and the ring above hung: 0.7 ->
-        // 38.5 mm in air, Cura defaults.)
+        // the layer above finds its regions on this layer as rewritten only then. (Finding
+        // them on a wide rewrite too made a bowl's thin ring over its first wide layer wide,
+        // and the ring above hung: 0.7 -> 38.5 mm in air, Cura defaults.) Over a wide
+        // rewrite the layer as rewritten is made only when the layer above has regions to
+        // plan on it ([`WideBelow`]): buffering every loop of a big region costs as much as
+        // the region search.
         let moves_outline = rewrites.iter().any(|r| r.plan.with_perimeter);
+        self.wide_below = None;
         self.rewritten_below = if !moves_outline {
             None
         } else {
@@ -1968,6 +2006,20 @@ impl PoaPass<'_> {
             }
             self.account(layer, &bytes, stats);
             self.reread = back;
+            if !moves_outline {
+                self.wide_below = Some(WideBelow {
+                    index: layer.index,
+                    area: area().clone().into_owned(),
+                    zones: rewrites.iter().fold(MultiPolygon(Vec::new()), |acc, r| {
+                        crate::geometry::union(&acc, &r.plan.zone)
+                    }),
+                    strands: rewrites
+                        .iter()
+                        .flat_map(|r| r.plan.strands.iter())
+                        .map(|s| (s.points.clone(), s.width))
+                        .collect(),
+                });
+            }
             // The layer above is planned on what this layer prints as written: the area
             // made from the plan alone keeps, in places, the slicer's perimeter that the
             // splice took out (an edge a loop above then grew from, in air).
