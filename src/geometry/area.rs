@@ -268,6 +268,10 @@ pub fn outline_strands(layer: &Layer) -> Strands {
 /// leaves a loop open by a millimetre or two, which would leave the part's outline unclosed.
 const WALL_JOIN: f64 = 2.5;
 
+/// A wall loop is closed across its seam only where the gap is at most this share of its
+/// length: the ends of an open wall (a thin fin's single line) lie far apart.
+const SEAM_SHARE: f64 = 0.2;
+
 fn is_wall(role: Role) -> bool {
     matches!(
         role,
@@ -276,9 +280,26 @@ fn is_wall(role: Role) -> bool {
 }
 
 /// Short strands that join consecutive walls of one object across a gap up to
-/// [`WALL_JOIN`], for the outline only (nothing is printed there).
+/// [`WALL_JOIN`], and close a wall loop left open by that much at its seam (Cura's coasting
+/// ends every wall loop 1.6 mm short: with the seams aligned, a ring's walls all open at the
+/// same place, the ring read as a C, and the hole it walls filled), for the outline only
+/// (nothing is printed there; the nozzle's pressure lays the coasted end).
 pub(super) fn wall_joins(layer: &Layer) -> Vec<Path> {
     let mut joins = Vec::new();
+    for p in layer.paths.iter().filter(|p| is_wall(p.role)) {
+        let (Some(&start), Some(&end)) = (p.points.first(), p.points.last()) else {
+            continue;
+        };
+        let gap = ((end[0] - start[0]).powi(2) + (end[1] - start[1]).powi(2)).sqrt();
+        if gap > 1e-6 && gap <= WALL_JOIN && gap <= SEAM_SHARE * p.length() {
+            joins.push(Path {
+                points: vec![end, start],
+                seg_line: vec![0],
+                seg_e: vec![0.0],
+                ..p.clone()
+            });
+        }
+    }
     for w in layer.paths.windows(2) {
         let (a, b) = (&w[0], &w[1]);
         if !(is_wall(a.role) && is_wall(b.role)) || a.object != b.object {
