@@ -1717,11 +1717,59 @@ impl<'a> PoaPass<'a> {
             .as_ref()
             .filter(|wb| wb.index + 1 == layer.index && layer.on_previous())
             .map(|wb| {
-                let strands = wb.strands.iter().map(|(p, w)| (&p[..], *w));
-                let rewritten = crate::geometry::rewritten_area(&wb.area, &wb.zones, strands);
+                // Made near the chosen regions only (the planner reads nothing farther): a
+                // plate's worth of loops costs as much to buffer as the region search.
+                let boxes: Vec<[f64; 4]> = chosen
+                    .iter()
+                    .filter_map(|(_, r)| {
+                        let b = geo::BoundingRect::bounding_rect(&r.polygon)?;
+                        let m = r.max_distance.min(1000.0)
+                            + widths.tolerance
+                            + 3.0 * widths.loop_width
+                            + 1.0;
+                        Some([b.min().x - m, b.min().y - m, b.max().x + m, b.max().y + m])
+                    })
+                    .collect();
+                let near = |pts: &[[f64; 2]]| {
+                    crate::geometry::points_box(pts).is_some_and(|b| {
+                        boxes.iter().any(|w| {
+                            b.min().x <= w[2]
+                                && w[0] <= b.max().x
+                                && b.min().y <= w[3]
+                                && w[1] <= b.max().y
+                        })
+                    })
+                };
+                let window = boxes.iter().fold(MultiPolygon(Vec::new()), |acc, w| {
+                    let rect = geo::Rect::new((w[0], w[1]), (w[2], w[3])).to_polygon();
+                    crate::geometry::union(&acc, &MultiPolygon::new(vec![rect]))
+                });
+                let strands = wb
+                    .strands
+                    .iter()
+                    .filter(|(p, _)| near(p))
+                    .map(|(p, w)| (&p[..], *w));
+                let rewritten = crate::geometry::rewritten_area(
+                    &crate::geometry::intersection(&wb.area, &window),
+                    &crate::geometry::intersection(&wb.zones, &window),
+                    strands,
+                );
                 match self.reread.as_ref().filter(|r| r.index == wb.index) {
                     Some(r) => {
-                        let printed = crate::geometry::printed_area(r, &self.opts.detect.area);
+                        let local = Layer {
+                            paths: r
+                                .paths
+                                .iter()
+                                .filter(|p| near(&p.points))
+                                .cloned()
+                                .collect(),
+                            raw: Vec::new(),
+                            start: None,
+                            objects: None,
+                            rests_on: r.rests_on.clone(),
+                            ..*r
+                        };
+                        let printed = crate::geometry::printed_area(&local, &self.opts.detect.area);
                         crate::geometry::intersection(
                             &rewritten,
                             &crate::geometry::offset(&printed, REREAD_SLACK),

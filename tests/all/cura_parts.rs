@@ -306,8 +306,13 @@ fn coasted_wall_loops_still_wall_their_holes() {
     }
     assert!(off < 1.0, "{off:.1} mm of poa's strands lie off the part");
     let (before, after) = (
-        printonair::report::check(&d[..], SlicerConfig::parse(&d), &CheckOptions::default(), "a")
-            .unwrap(),
+        printonair::report::check(
+            &d[..],
+            SlicerConfig::parse(&d),
+            &CheckOptions::default(),
+            "a",
+        )
+        .unwrap(),
         printonair::report::check(
             &new[..],
             SlicerConfig::parse(&new),
