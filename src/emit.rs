@@ -186,20 +186,6 @@ const REREAD_SLACK: f64 = 0.02;
 /// Layers whose external perimeter width [`PoaPass::width_on`] takes the median of.
 const WALL_WIDTH_LAYERS: usize = 32;
 
-/// Whether the layer prints its external perimeter before the inner walls: its first wall
-/// is an external perimeter, and it has inner walls at all.
-fn outer_first(layer: &Layer) -> bool {
-    use crate::layers::Role;
-    let mut walls = layer
-        .paths
-        .iter()
-        .filter(|p| matches!(p.role, Role::ExternalPerimeter | Role::Perimeter));
-    walls
-        .next()
-        .is_some_and(|p| p.role == Role::ExternalPerimeter)
-        && walls.any(|p| p.role == Role::Perimeter)
-}
-
 /// Median width of a layer's external perimeters, if it has any.
 fn median_wall_width(layer: &Layer) -> Option<f64> {
     let mut widths: Vec<f64> = layer
@@ -1705,7 +1691,6 @@ impl<'a> PoaPass<'a> {
             loop_width: self.width_on(layer),
             perimeter_width: self.width_on(layer),
             tolerance: self.opts.detect.tolerance_at(layer.height),
-            outer_first: outer_first(layer),
         };
         let settings = &self.opts.settings;
         // Over a layer rewritten with wide regions, the loops grow from what it prints as
