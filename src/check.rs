@@ -238,7 +238,7 @@ impl EndSupport {
             filament_area,
             opts: CheckOptions::default(),
         };
-        for s in below.iter().flat_map(|b| segments(b, filament_area)) {
+        for s in below.iter().flat_map(|b| segments(b, filament_area, false)) {
             sup.insert(s);
         }
         sup
@@ -474,18 +474,27 @@ fn seg_width(path: &Path, i: usize, filament_area: f64) -> f64 {
     flow_width(path.seg_e[i], len, path.height, filament_area).clamp(0.0, 10.0)
 }
 
-fn segments(layer: &Layer, filament_area: f64) -> impl Iterator<Item = Seg> + '_ {
-    layer.paths.iter().flat_map(move |p| {
-        (0..p.points.len().saturating_sub(1)).map(move |i| Seg {
-            a: p.points[i],
-            b: p.points[i + 1],
-            half: seg_width(p, i, filament_area) / 2.0,
+/// The layer's bead segments; only its support material's with `support_only`.
+fn segments(
+    layer: &Layer,
+    filament_area: f64,
+    support_only: bool,
+) -> impl Iterator<Item = Seg> + '_ {
+    let paths = layer.paths.iter();
+    paths
+        .filter(move |p| !support_only || p.role.is_support())
+        .flat_map(move |p| {
+            (0..p.points.len().saturating_sub(1)).map(move |i| Seg {
+                a: p.points[i],
+                b: p.points[i + 1],
+                half: seg_width(p, i, filament_area) / 2.0,
+            })
         })
-    })
 }
 
 /// The layers among `recent` (earlier layers, in any order) that `layer` rests on
-/// ([`Layer::rests_on`]).
+/// ([`Layer::rests_on`]), then those whose support material holds it across the contact gap
+/// ([`Layer::contact`]; only their support strands count, see [`check_layer`]).
 pub fn resting_on<'a>(
     layer: &Layer,
     recent: impl Iterator<Item = &'a Layer> + Clone,
@@ -493,6 +502,7 @@ pub fn resting_on<'a>(
     layer
         .rests_on
         .iter()
+        .chain(&layer.contact)
         .filter_map(|&i| {
             recent
                 .clone()
@@ -588,7 +598,9 @@ fn check_within(
     let mut grid = Grid::new(1.0, min, max);
     let on_bed = layer.on_bed();
     for b in below {
-        for s in segments(b, filament_area) {
+        // A layer under the contact gap holds this one by its support material only.
+        let support_only = layer.contact.contains(&b.index) && !layer.rests_on.contains(&b.index);
+        for s in segments(b, filament_area, support_only) {
             if window.is_none() || boxes_meet(points_bounds(&[s.a, s.b]), (min, max), 0.0) {
                 grid.insert(s);
             }

@@ -183,6 +183,30 @@ const KEEP_BELOW: usize = 8;
 /// read back (mm): the two differ by the rounding of arcs and E.
 const REREAD_SLACK: f64 = 0.02;
 
+/// Share of a loop-less plan's zone its strands may leave bare: a plan of perimeters only
+/// takes the slicer's strands out of the whole zone, so one over a region wider than a ring
+/// (a part's first layer over a raft, found over the support layer under its tip) would
+/// drop the layer's solid infill and put nothing back.
+const BARE_SHARE: f64 = 0.25;
+
+/// Whether a plan without loops would leave more than [`BARE_SHARE`] of its zone (and more
+/// than a square millimetre) with none of its strands.
+fn leaves_a_hole(plan: &Plan) -> bool {
+    use geo::Area;
+    // A gradual overhang's thin ring is left bare in part by design: its moved perimeter
+    // lies over the ring's outer side only.
+    if plan.loops > 0 || plan.with_perimeter {
+        return false;
+    }
+    let zone = plan.zone.unsigned_area();
+    let laid = crate::geometry::area::Strands::of_lines(
+        plan.strands.iter().map(|s| (s.points.as_slice(), s.width)),
+    )
+    .buffer();
+    let bare = crate::geometry::difference(&plan.zone, &laid).unsigned_area();
+    bare > 1.0 && bare > BARE_SHARE * zone
+}
+
 /// Layers whose external perimeter width [`PoaPass::width_on`] takes the median of.
 const WALL_WIDTH_LAYERS: usize = 32;
 
@@ -1752,6 +1776,7 @@ impl<'a> PoaPass<'a> {
                             start: None,
                             objects: None,
                             rests_on: r.rests_on.clone(),
+                            contact: r.contact.clone(),
                             ..*r
                         };
                         let printed = crate::geometry::printed_area(&local, &self.opts.detect.area);
@@ -1852,7 +1877,7 @@ impl<'a> PoaPass<'a> {
         };
         let mut rewrites = Vec::new();
         for (id, kind, plan, height) in plans {
-            if plan.strands.is_empty() {
+            if plan.strands.is_empty() || leaves_a_hole(&plan) {
                 self.report.skipped.push(SkippedRegion {
                     region: id,
                     layer: layer.index + 1,
@@ -2205,6 +2230,7 @@ fn reread(layer: &Layer, bytes: &[u8], config: &SlicerConfig) -> Option<Layer> {
         z: layer.z,
         height: layer.height,
         rests_on: layer.rests_on.clone(),
+        contact: layer.contact.clone(),
         paths,
         first_line: layer.first_line,
         last_line: layer.last_line,
@@ -2398,6 +2424,33 @@ mod tests {
             points,
             width: 0.45,
         }
+    }
+
+    #[test]
+    fn a_plan_of_perimeters_only_over_a_wide_zone_is_not_laid() {
+        use crate::geometry::testutil::{mp, rect};
+        let ring = |x0: f64, y0: f64, x1: f64, y1: f64| Strand {
+            kind: StrandKind::Perimeter,
+            loop_index: 0,
+            points: vec![[x0, y0], [x1, y0], [x1, y1], [x0, y1], [x0, y0]],
+            width: 0.45,
+        };
+        let plan = |zone, loops| Plan {
+            zone,
+            strands: vec![ring(0.2, 0.2, 4.8, 8.8)],
+            loops,
+            with_perimeter: false,
+        };
+        // A 5 x 9 mm first layer: its perimeter alone would take out its solid infill.
+        assert!(leaves_a_hole(&plan(mp(vec![rect(0.0, 0.0, 5.0, 9.0)]), 0)));
+        // A ring under the perimeter (a gradual overhang's): the perimeter fills it.
+        let thin = crate::geometry::difference(
+            &mp(vec![rect(0.0, 0.0, 5.0, 9.0)]),
+            &mp(vec![rect(0.45, 0.45, 4.55, 8.55)]),
+        );
+        assert!(!leaves_a_hole(&plan(thin, 0)));
+        // Loops fill a wide zone.
+        assert!(!leaves_a_hole(&plan(mp(vec![rect(0.0, 0.0, 5.0, 9.0)]), 3)));
     }
 
     #[test]

@@ -635,7 +635,8 @@ pub fn check<R: BufRead + Send>(
     };
     // Layers are checked in parallel batches; each needs the layers it rests on, so the last
     // layers of a batch are carried into the next: the last one, or as many as the farthest
-    // any layer so far has rested back (objects of different layer heights interleave).
+    // any layer so far has rested back (objects of different layer heights interleave, or
+    // support holds a layer across its contact gap).
     const BATCH: usize = 4;
     let checks = geometry::read_ahead(reader.by_ref(), |layers| {
         let mut checks: Vec<LayerCheck> = Vec::new();
@@ -652,7 +653,8 @@ pub fn check<R: BufRead + Send>(
                 continue;
             }
             for l in &batch[carried..] {
-                let back = l.rests_on.iter().map(|&i| l.index.saturating_sub(i));
+                let back =
+                    (l.rests_on.iter().chain(&l.contact)).map(|&i| l.index.saturating_sub(i));
                 span = back
                     .fold(span, usize::max)
                     .min(crate::layers::RECENT_LAYERS);

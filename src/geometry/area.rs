@@ -412,12 +412,29 @@ fn with_support(layer: &Layer, opts: &AreaOptions) -> MultiPolygon<f64> {
         start: None,
         objects: None,
         rests_on: Vec::new(),
+        contact: Vec::new(),
         ..*layer
     };
     let part_area = printed_area(&part, opts);
-    let support = Strands::of(layer.paths.iter().filter(|p| is_support(p.role))).buffer();
-    let support_area = close_holes(support, |hole| hole_width_below(hole, opts.gap_close));
+    let support_area = support_area(
+        layer
+            .paths
+            .iter()
+            .filter(|p| is_support(p.role))
+            .map(|p| (&p.points[..], p.width)),
+        opts,
+    );
     BooleanOps::union(&part_area, &support_area)
+}
+
+/// The area support material strands (polyline, bead width) print: their footprint with
+/// the gaps between lines narrower than [`AreaOptions::gap_close`] closed.
+pub fn support_area<'a>(
+    lines: impl IntoIterator<Item = (&'a [[f64; 2]], f64)>,
+    opts: &AreaOptions,
+) -> MultiPolygon<f64> {
+    let support = Strands::of_lines(lines).buffer();
+    close_holes(support, |hole| hole_width_below(hole, opts.gap_close))
 }
 
 /// Whether a path's first, middle and last points lie in `area`.

@@ -180,6 +180,10 @@ where
     // The first layers (on the bed) seen so far, by index.
     let mut on_bed: Vec<usize> = Vec::new();
     let mut below_support: Option<Support> = None;
+    // The support interface strands of the recent layers that print some (index, strands):
+    // a layer found over air where the slicer supported it, across its contact gap
+    // ([`Layer::contact`]), looks again with them.
+    let mut contact_hist: VecDeque<(usize, Vec<ContactLine>)> = VecDeque::new();
     let mut last: Option<(Strands, MultiPolygon<f64>)> = None;
     // The last layer read is held back until the next one's proof is known.
     let mut window: Vec<Pending> = Vec::with_capacity(BATCH + 1);
@@ -271,7 +275,16 @@ where
                 hist.push_back((p.layer.index, a.clone()));
             }
         }
-        let regions: Vec<Vec<Region>> = batch
+        for p in &batch {
+            let lines = contact_lines(&p.layer);
+            if !lines.is_empty() {
+                if contact_hist.len() >= CONTACT_KEEP {
+                    contact_hist.pop_front();
+                }
+                contact_hist.push_back((p.layer.index, lines));
+            }
+        }
+        let searched: Vec<(Vec<Region>, Option<MultiPolygon<f64>>)> = batch
             .par_iter()
             .zip(areas.par_iter())
             .zip(belows.par_iter())
@@ -279,17 +292,33 @@ where
                 let l = &p.layer;
                 // The first layer rests on the bed.
                 if l.kind != LayerKind::Layer || l.on_bed() || p.proven {
-                    return Vec::new();
+                    return (Vec::new(), None);
                 }
                 match (a, b) {
-                    (Some(a), Some(b)) => find_regions(b, l, a, opts),
+                    (Some(a), Some(b)) => {
+                        let regions = find_regions(b, l, a, opts);
+                        if regions.is_empty() || l.contact.is_empty() {
+                            return (regions, None);
+                        }
+                        match with_contact(b, l, &regions, &contact_hist, opts) {
+                            Some(b) => (find_regions(&b, l, a, opts), Some(b)),
+                            None => (regions, None),
+                        }
+                    }
                     // Both are computed whenever the proof failed (see `need`), but for a
                     // layer resting on one handed on before layers were seen to interleave:
                     // what it rests on is not known, and it is left as sliced.
-                    _ => Vec::new(),
+                    _ => (Vec::new(), None),
                 }
             })
             .collect();
+        let mut regions = Vec::with_capacity(searched.len());
+        for ((r, b), below) in searched.into_iter().zip(belows.iter_mut()) {
+            if b.is_some() {
+                *below = b;
+            }
+            regions.push(r);
+        }
         lines += batch
             .iter()
             .map(|p| (p.layer.last_line + 1).saturating_sub(p.layer.first_line))
@@ -311,6 +340,69 @@ where
             return Ok(());
         }
     }
+}
+
+/// Layers with support material whose strands detection keeps: more than the
+/// [`crate::layers::CONTACT_GAP`] spans at the finest layer heights.
+const CONTACT_KEEP: usize = 12;
+
+/// A support strand: its points and bead width.
+type ContactLine = (Vec<[f64; 2]>, f64);
+
+/// The layer's support interface strands (a raft's top is one): the dense layers a part
+/// rests on across the contact gap. Sparse support lines without an interface (Cura's
+/// default, no support roof) leave the part's strands between them hanging; a region over
+/// them is planned as over air.
+fn contact_lines(layer: &Layer) -> Vec<ContactLine> {
+    if layer.kind != LayerKind::Layer {
+        return Vec::new();
+    }
+    layer
+        .paths
+        .iter()
+        .filter(|p| p.role == crate::layers::Role::SupportInterface)
+        .map(|p| (p.points.clone(), p.width))
+        .collect()
+}
+
+/// `below` with the area printed by the support material under `layer` across its contact
+/// gap, near `regions` (its boxes grown by a few millimetres); `None` when no such support
+/// comes near them.
+fn with_contact(
+    below: &MultiPolygon<f64>,
+    layer: &Layer,
+    regions: &[Region],
+    hist: &VecDeque<(usize, Vec<ContactLine>)>,
+    opts: &DetectOptions,
+) -> Option<MultiPolygon<f64>> {
+    use geo::BoundingRect;
+    const MARGIN: f64 = 3.0;
+    let boxes: Vec<geo::Rect<f64>> = regions
+        .iter()
+        .filter_map(|r| r.polygon.bounding_rect())
+        .collect();
+    let near = |pts: &[[f64; 2]]| {
+        super::points_box(pts).is_some_and(|b| {
+            boxes.iter().any(|r| {
+                b.min().x <= r.max().x + MARGIN
+                    && r.min().x - MARGIN <= b.max().x
+                    && b.min().y <= r.max().y + MARGIN
+                    && r.min().y - MARGIN <= b.max().y
+            })
+        })
+    };
+    let lines: Vec<(&[[f64; 2]], f64)> = hist
+        .iter()
+        .filter(|(i, _)| layer.contact.contains(i))
+        .flat_map(|(_, lines)| lines.iter())
+        .filter(|(pts, _)| near(pts))
+        .map(|(pts, w)| (pts.as_slice(), *w))
+        .collect();
+    if lines.is_empty() {
+        return None;
+    }
+    let support = super::area::support_area(lines, &opts.area);
+    Some(super::union(below, &support))
 }
 
 /// The area a layer rests on: the union of the areas of the layers it rests on, from the

@@ -650,6 +650,7 @@ mod tests {
             z: 1.2,
             height: 0.2,
             rests_on: vec![4],
+            contact: Vec::new(),
             paths: Vec::new(),
             first_line: 1,
             last_line: 1,

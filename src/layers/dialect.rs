@@ -200,10 +200,13 @@ impl Role {
             "bridge infill" | "bridge" => Role::BridgeInfill,
             "internal bridge infill" | "internal bridge" => Role::InternalBridge,
             "gap fill" | "gap infill" => Role::GapFill,
-            "support material" | "support" | "support transition" => Role::Support,
-            "support material interface" | "support interface" | "dense support" => {
-                Role::SupportInterface
+            "support material" | "support" | "support transition" | "support-infill" | "raft" => {
+                Role::Support
             }
+            "support material interface"
+            | "support interface"
+            | "support-interface"
+            | "dense support" => Role::SupportInterface,
             "skirt/brim" | "skirt" | "brim" => Role::SkirtBrim,
             "wipe tower" | "prime tower" | "prime-tower" | "prime pillar" | "ooze shield"
             | "wipe" => Role::WipePrime,
@@ -211,6 +214,11 @@ impl Role {
             _ => return None,
         };
         Some(role)
+    }
+
+    /// Support material, its interface and a raft.
+    pub fn is_support(self) -> bool {
+        matches!(self, Role::Support | Role::SupportInterface)
     }
 
     /// Whether the role belongs to the part (as opposed to support, skirt or priming).
@@ -579,6 +587,21 @@ mod tests {
             Some(Tag::ConfigBegin)
         );
         assert_eq!(parse_tag(" hello"), None);
+    }
+
+    #[test]
+    fn cura_support_and_raft_tags_are_support() {
+        // CuraEngine 4.13 types its raft and support roofs SUPPORT-INTERFACE; Cura 5 its
+        // support infill SUPPORT-INFILL.
+        for (name, role) in [
+            ("SUPPORT", Role::Support),
+            ("SUPPORT-INFILL", Role::Support),
+            ("SUPPORT-INTERFACE", Role::SupportInterface),
+            ("Support material interface", Role::SupportInterface),
+        ] {
+            assert_eq!(Role::from_slicer_name(name), Some(role), "{name}");
+            assert!(role.is_support() && !role.is_part());
+        }
     }
 
     #[test]

@@ -118,6 +118,10 @@ pub struct Layer {
     /// layer before it; several where objects of different layer heights interleave (see
     /// [`rests_on`]); empty for the first layer and the preamble.
     pub rests_on: Vec<usize>,
+    /// Earlier layers below those it rests on whose support material holds it across the
+    /// slicer's support contact gap (see [`contact_under`]): only their support strands count
+    /// under this layer. Empty without support material.
+    pub contact: Vec<usize>,
     pub paths: Vec<Path>,
     /// First and last source line (inclusive). An empty block has `last_line < first_line`.
     pub first_line: u64,
@@ -188,6 +192,57 @@ pub fn rests_on(recent: &VecDeque<(usize, f64)>, z: f64, height: f64) -> Vec<usi
         on.extend(recent.back().map(|&(i, _)| i));
     }
     on
+}
+
+/// Deepest gap (mm) between a layer's bottom and the top of support material under it that
+/// still holds it: slicers leave a contact gap over support and raft so that the part comes
+/// off (PrusaSlicer's `support_material_contact_distance` and `raft_contact_distance`, 0.1-0.3
+/// mm in the shipped profiles; Cura's `support_top_distance`, one layer by default).
+pub const CONTACT_GAP: f64 = 0.4;
+
+/// The layers under a layer with top `z` and bead height `height` whose support material
+/// holds it across the contact gap: walking back through `recent` (as [`rests_on`]), the
+/// layers with support material whose top lies below the layer's bottom by at most
+/// [`CONTACT_GAP`] (or at its bottom, where [`rests_on`] did not find them), most recent
+/// first. `support(i)` says whether layer `i` prints support
+/// material (`Some`) and whether nothing else (`Some(true)`). A part's first layer over a
+/// raft, or over support that starts lower, rests on layers of support alone: the walk goes
+/// down through them all (the raft's top is further down than the gap). The walk ends at a
+/// layer more than a layer height above the layer's top (sequential printing coming back
+/// down) or deeper than the gap.
+pub fn contact_under(
+    recent: &VecDeque<(usize, f64)>,
+    support: impl Fn(usize) -> Option<bool>,
+    rests: &[usize],
+    z: f64,
+    height: f64,
+) -> Vec<usize> {
+    let eps = (0.25 * height).clamp(0.002, 0.02);
+    let bottom = z - height;
+    let mut through = !rests.is_empty() && rests.iter().all(|&i| support(i) == Some(true));
+    let mut under = Vec::new();
+    for &(i, top) in recent.iter().rev() {
+        if rests.contains(&i) {
+            continue;
+        }
+        if top > z + height {
+            break;
+        }
+        if top > z - eps {
+            // Another object's part of the same layer, or Cura's first layer over a raft,
+            // printed higher than the layer after it.
+            continue;
+        }
+        let s = support(i);
+        through &= s == Some(true);
+        if !through && top < bottom - CONTACT_GAP - eps {
+            break;
+        }
+        if s.is_some() {
+            under.push(i);
+        }
+    }
+    under
 }
 
 /// The bead height that carries the most of the layer's extrusion length (0 when no path
@@ -321,6 +376,9 @@ struct State {
     last_height: f64,
     /// The last [`RECENT_LAYERS`] layers' (index, top Z), for [`rests_on`].
     recent: VecDeque<(usize, f64)>,
+    /// The layers among [`Self::recent`] that print support material (index, and whether
+    /// nothing else).
+    recent_support: Vec<(usize, bool)>,
     /// The interpreter's state before the line being handled (kept only with `keep_raw`).
     before_line: Machine,
     /// The nozzle diameter, where the file states no filament diameter (E is then read as
@@ -500,6 +558,7 @@ impl State {
             prev_layer_z: 0.0,
             last_height: 0.0,
             recent: VecDeque::new(),
+            recent_support: Vec::new(),
             before_line: Machine::new(),
         }
     }
@@ -778,6 +837,7 @@ impl State {
                 self.prev_layer_z = 0.0;
                 self.last_height = 0.0;
                 self.recent.clear();
+                self.recent_support.clear();
             }
             _ => self.finish_current(line),
         }
@@ -1082,12 +1142,28 @@ impl State {
             self.sample_walls(&paths, b.last_line);
         }
         let mut rests = Vec::new();
+        let mut contact = Vec::new();
         if is_layer {
             rests = rests_on(&self.recent, z, reach);
+            if !self.recent_support.is_empty() {
+                let support = |i: usize| {
+                    let s = self.recent_support.iter().find(|s| s.0 == i);
+                    s.map(|s| s.1)
+                };
+                contact = contact_under(&self.recent, support, &rests, z, reach);
+            }
             if self.recent.len() == RECENT_LAYERS {
-                self.recent.pop_front();
+                if let Some((gone, _)) = self.recent.pop_front() {
+                    self.recent_support.retain(|s| s.0 != gone);
+                }
             }
             self.recent.push_back((index, z));
+            if paths.iter().any(|p| p.role.is_support()) {
+                let alone = paths
+                    .iter()
+                    .all(|p| p.role.is_support() || !p.role.is_part());
+                self.recent_support.push((index, alone));
+            }
             self.next_index += 1;
             self.prev_layer_z = z;
             self.last_height = height;
@@ -1099,6 +1175,7 @@ impl State {
             z,
             height,
             rests_on: rests,
+            contact,
             paths,
             first_line: b.first_line,
             last_line: b.last_line,
@@ -1181,6 +1258,7 @@ pub(crate) mod testing {
             z: 0.2 * (index + 1) as f64,
             height: 0.2,
             rests_on: index.checked_sub(1).into_iter().collect(),
+            contact: Vec::new(),
             paths,
             first_line: 1,
             last_line: 1,
@@ -1385,6 +1463,33 @@ M486 S3\nM486 Abox\nG1 X20 E1\nM486 S-1\n";
         // A gap under the layer: the layer before, as for any file.
         assert_eq!(rests_on(&recent(&[(0, 0.2)]), 1.0, 0.2), vec![0]);
         assert!(rests_on(&recent(&[]), 0.2, 0.2).is_empty());
+    }
+
+    #[test]
+    fn support_holds_a_layer_across_its_contact_gap() {
+        let recent = |v: &[(usize, f64)]| v.iter().copied().collect::<VecDeque<_>>();
+        // A part at 0.3 mm layers; support on layers 0 and 1. The layer at 1.2 stands 0.3 mm
+        // over layer 1's support, 0.6 mm over layer 0's (too deep to hold it).
+        let r = recent(&[(0, 0.3), (1, 0.6), (2, 0.9)]);
+        let part_and_support = |i: usize| (i <= 1).then_some(false);
+        assert_eq!(contact_under(&r, part_and_support, &[2], 1.2, 0.3), vec![1]);
+        assert!(contact_under(&r, |i| (i == 0).then_some(false), &[2], 1.2, 0.3).is_empty());
+        // A first layer over a raft (0.2, 0.45, 0.5) and a support-only layer at 0.695 under
+        // the part's tip: it rests on the support layer, and through it on the whole raft.
+        let raft = recent(&[(0, 0.2), (1, 0.4476), (2, 0.5), (3, 0.6951)]);
+        let alone = |_| Some(true);
+        assert_eq!(
+            contact_under(&raft, alone, &[3], 0.9, 0.2049),
+            vec![2, 1, 0]
+        );
+        // Cura prints the first layer over its raft (layer 3) higher than the next one, which
+        // rests on the support under it all the same.
+        let cura = recent(&[(0, 0.65), (1, 0.93), (2, 1.15)]);
+        let support = |i| (i < 2).then_some(true);
+        assert_eq!(contact_under(&cura, support, &[2], 1.08, 0.15), vec![1, 0]);
+        // Sequential printing: an object printed before, higher up, ends the walk.
+        let seq = recent(&[(0, 0.2), (1, 10.0), (2, 0.2)]);
+        assert!(contact_under(&seq, |i| (i == 1).then_some(true), &[2], 0.4, 0.2).is_empty());
     }
 
     #[test]
