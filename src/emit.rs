@@ -1106,7 +1106,8 @@ fn emit_block(
             travel += w.travel(t, first.points[0], d > hop);
         }
     }
-    w.fan(settings.fan, false);
+    // The setting is a percentage: written as a whole PWM step (90 % is S230).
+    w.fan((settings.fan * 255.0).round() / 255.0, false);
     // A temperature change only when the file says what the temperature is.
     let temp = before
         .hotend_temp

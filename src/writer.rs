@@ -416,13 +416,14 @@ impl<'a> Writer<'a> {
         d
     }
 
-    /// Part-cooling fan at `fraction` of full (M107 for off when `off_as_m107`).
+    /// Part-cooling fan at `fraction` of full (M107 for off when `off_as_m107`). S keeps two
+    /// decimals: a fan the slicer set to `S170.85` is restored as it wrote it.
     pub fn fan(&mut self, fraction: f64, off_as_m107: bool) {
-        let s = (fraction.clamp(0.0, 1.0) * 255.0).round();
-        if s <= 0.0 && off_as_m107 {
+        let s = fraction.clamp(0.0, 1.0) * 255.0;
+        if s < 0.005 && off_as_m107 {
             self.line("M107");
         } else {
-            self.line(&format!("M106 S{}", fmt_num(s, 0)));
+            self.line(&format!("M106 S{}", fmt_num(s, 2)));
         }
     }
 
@@ -461,6 +462,21 @@ mod tests {
         assert_eq!(
             String::from_utf8(out).unwrap(),
             "G1 X2 Y1 E10.5\nG1 X3 Y1 E10.75\nG92 E10\n"
+        );
+    }
+
+    #[test]
+    fn a_fan_is_restored_as_the_slicer_set_it() {
+        let m = state("M82");
+        let mut out = Vec::new();
+        let mut w = Writer::new(&mut out, "\n", &m);
+        w.fan(1.0, true);
+        w.fan(170.85 / 255.0, true);
+        w.fan(0.0, true);
+        w.fan(0.0, false);
+        assert_eq!(
+            String::from_utf8(out).unwrap(),
+            "M106 S255\nM106 S170.85\nM107\nM106 S0\n"
         );
     }
 
