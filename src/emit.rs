@@ -182,6 +182,10 @@ const KEEP_BELOW: usize = 8;
 /// How far the area a rewritten layer is planned to print may reach past what it prints as
 /// read back (mm): the two differ by the rounding of arcs and E.
 const REREAD_SLACK: f64 = 0.02;
+/// How far from the rewritten zones the splice may change a layer (a cut strand's end, an
+/// anchor, a perimeter taken out with its region): past it the area read back is taken as
+/// detected.
+const AWAY_FROM_ZONES: f64 = 1.5;
 
 /// Share of a loop-less plan's zone its strands may leave bare: a plan of perimeters only
 /// takes the slicer's strands out of the whole zone, so one over a region wider than a ring
@@ -2009,12 +2013,12 @@ impl PoaPass<'_> {
         // the region search.
         let moves_outline = rewrites.iter().any(|r| r.plan.with_perimeter);
         self.wide_below = None;
+        let zones = rewrites.iter().fold(MultiPolygon(Vec::new()), |acc, r| {
+            crate::geometry::union(&acc, &r.plan.zone)
+        });
         self.rewritten_below = if !moves_outline {
             None
         } else {
-            let zones = rewrites.iter().fold(MultiPolygon(Vec::new()), |acc, r| {
-                crate::geometry::union(&acc, &r.plan.zone)
-            });
             let strands = rewrites
                 .iter()
                 .flat_map(|r| r.plan.strands.iter())
@@ -2069,9 +2073,7 @@ impl PoaPass<'_> {
                 self.wide_below = Some(WideBelow {
                     index: layer.index,
                     area: area().clone().into_owned(),
-                    zones: rewrites.iter().fold(MultiPolygon(Vec::new()), |acc, r| {
-                        crate::geometry::union(&acc, &r.plan.zone)
-                    }),
+                    zones: zones.clone(),
                     strands: rewrites
                         .iter()
                         .flat_map(|r| r.plan.strands.iter())
@@ -2082,14 +2084,25 @@ impl PoaPass<'_> {
             // The layer above is planned on what this layer prints as written: the area
             // made from the plan alone keeps, in places, the slicer's perimeter that the
             // splice took out (an edge a loop above then grew from, in air).
-            if let (Some((i, area)), Some(r)) = (&self.rewritten_below, &self.reread) {
+            if let (Some((i, below_area)), Some(r)) = (&self.rewritten_below, &self.reread) {
                 if *i == layer.index {
-                    let printed = crate::geometry::printed_area(r, &self.opts.detect.area);
-                    let area = crate::geometry::intersection(
-                        area,
+                    // Away from the zones the layer is the slicer's: its area as detected
+                    // there (read back, strands cut at a zone's edge can split the infill's
+                    // outline into pockets the hole rule leaves open, and the layer above
+                    // found a honeycomb's cells over air, layer after layer).
+                    let away = crate::geometry::difference(
+                        area(),
+                        &crate::geometry::offset(&zones, AWAY_FROM_ZONES),
+                    );
+                    let printed = crate::geometry::union(
+                        &crate::geometry::printed_area(r, &self.opts.detect.area),
+                        &away,
+                    );
+                    let rewritten = crate::geometry::intersection(
+                        below_area,
                         &crate::geometry::offset(&printed, REREAD_SLACK),
                     );
-                    self.rewritten_below = Some((*i, area));
+                    self.rewritten_below = Some((*i, rewritten));
                 }
             }
             Some(bytes)

@@ -180,7 +180,7 @@ where
     // The first layers (on the bed) seen so far, by index.
     let mut on_bed: Vec<usize> = Vec::new();
     let mut below_support: Option<Support> = None;
-    // The support interface strands of the recent layers that print some (index, strands):
+    // The support material strands of the recent layers that print some (index, strands):
     // a layer found over air where the slicer supported it, across its contact gap
     // ([`Layer::contact`]), looks again with them.
     let mut contact_hist: VecDeque<(usize, Vec<ContactLine>)> = VecDeque::new();
@@ -349,10 +349,9 @@ const CONTACT_KEEP: usize = 12;
 /// A support strand: its points and bead width.
 type ContactLine = (Vec<[f64; 2]>, f64);
 
-/// The layer's support interface strands (a raft's top is one): the dense layers a part
-/// rests on across the contact gap. Sparse support lines without an interface (Cura's
-/// default, no support roof) leave the part's strands between them hanging; a region over
-/// them is planned as over air.
+/// The layer's support material strands. Sparse support without an interface (Cura's
+/// default, no support roof; its tree support) holds the part too, as the slicer planned it:
+/// loops over it bought nothing the deposition check could see, at two minutes a part.
 fn contact_lines(layer: &Layer) -> Vec<ContactLine> {
     if layer.kind != LayerKind::Layer {
         return Vec::new();
@@ -360,7 +359,7 @@ fn contact_lines(layer: &Layer) -> Vec<ContactLine> {
     layer
         .paths
         .iter()
-        .filter(|p| p.role == crate::layers::Role::SupportInterface)
+        .filter(|p| p.role.is_support())
         .map(|p| (p.points.clone(), p.width))
         .collect()
 }

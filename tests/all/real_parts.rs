@@ -427,6 +427,42 @@ fn a_hull_side_keeps_the_outline_the_layer_above_stands_on() {
     }
 }
 
+/// The hull with one perimeter round a honeycomb infill and a 0.6 mm nozzle: the layer above
+/// a moved perimeter is searched on the layer as rewritten and read back, where strands cut
+/// at a zone's edge split the infill's outline into pockets left open. The honeycomb's cells
+/// read as air, layer after layer: 153 regions for the 7 as sliced, +458 s on a 12 min print.
+#[test]
+fn a_honeycomb_next_to_a_rewrite_stays_infill_for_the_layer_above() {
+    let args = [
+        "--first-layer-height",
+        "0.3",
+        "--layer-height",
+        "0.28",
+        "--perimeters",
+        "1",
+        "--top-solid-layers",
+        "3",
+        "--fill-pattern",
+        "honeycomb",
+        "--nozzle-diameter",
+        "0.6",
+        "--extrusion-width",
+        "0.68",
+    ];
+    let Some(d) = slice("hull", &args) else {
+        return;
+    };
+    let (_, rep) = rewrite(&d, BridgeMode::Keep);
+    let before = check(&d);
+    assert!(
+        rep.time_added_s <= 0.1 * before.time_s && rep.regions_found <= 40,
+        "{} regions, +{:.0} s on {:.0} s",
+        rep.regions_found,
+        rep.time_added_s,
+        before.time_s
+    );
+}
+
 /// A horizontal cylinder on a post: its first layers are two wings anchored only at the
 /// post, whose first fronts are slivers too small to print. Both wings get their loops (the
 /// growth stopped after two empty fronts: one wing of a Cura slice got none, and the layer
