@@ -1575,7 +1575,9 @@ impl<'a> PoaPass<'a> {
             let report = &mut self.report;
             // Above a rewrite, a "bridge" is the gap a moved perimeter left: rewritten too.
             let hangs = hanging.get(k).copied().unwrap_or(false);
-            let why = if !self.opts.settings.rewrites(r.kind) && !above_rewrite && !hangs {
+            let why = if d.layer.helical {
+                "spiral layer (Z rises while it extrudes): its strands have no one height to write loops at"
+            } else if !self.opts.settings.rewrites(r.kind) && !above_rewrite && !hangs {
                 match r.kind {
                     RegionKind::Bridge => "bridge (use --bridges poa to rewrite bridges)",
                     _ => "floating: nothing below to grow loops from",
@@ -1782,6 +1784,7 @@ impl<'a> PoaPass<'a> {
                             objects: None,
                             rests_on: r.rests_on.clone(),
                             contact: r.contact.clone(),
+                            helical: r.helical,
                             ..*r
                         };
                         let printed = crate::geometry::printed_area(&local, &self.opts.detect.area);
@@ -2245,6 +2248,7 @@ fn reread(layer: &Layer, bytes: &[u8], config: &SlicerConfig) -> Option<Layer> {
         height: layer.height,
         rests_on: layer.rests_on.clone(),
         contact: layer.contact.clone(),
+        helical: layer.helical,
         paths,
         first_line: layer.first_line,
         last_line: layer.last_line,

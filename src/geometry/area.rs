@@ -413,6 +413,7 @@ fn with_support(layer: &Layer, opts: &AreaOptions) -> MultiPolygon<f64> {
         objects: None,
         rests_on: Vec::new(),
         contact: Vec::new(),
+        helical: false,
         ..*layer
     };
     let part_area = printed_area(&part, opts);

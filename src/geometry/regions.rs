@@ -651,6 +651,7 @@ mod tests {
             height: 0.2,
             rests_on: vec![4],
             contact: Vec::new(),
+            helical: false,
             paths: Vec::new(),
             first_line: 1,
             last_line: 1,

@@ -122,6 +122,9 @@ pub struct Layer {
     /// slicer's support contact gap (see [`contact_under`]): only their support strands count
     /// under this layer. Empty without support material.
     pub contact: Vec<usize>,
+    /// Z rises while the layer extrudes (a spiral vase's turn, a non-planar print): no layer
+    /// below it at one height, nothing poa rewrites.
+    pub helical: bool,
     pub paths: Vec<Path>,
     /// First and last source line (inclusive). An empty block has `last_line < first_line`.
     pub first_line: u64,
@@ -295,6 +298,7 @@ struct Builder {
     z_tag: Option<f64>,
     height_tag: Option<f64>,
     extrusion_z: Option<f64>,
+    helical: bool,
     first_line: u64,
     last_line: u64,
     raw: Vec<u8>,
@@ -310,6 +314,7 @@ impl Builder {
             z_tag: None,
             height_tag: None,
             extrusion_z: None,
+            helical: false,
             first_line,
             last_line: first_line.wrapping_sub(1),
             raw: Vec::new(),
@@ -872,6 +877,7 @@ impl State {
         if self.cur.extrusion_z.is_none() {
             self.cur.extrusion_z = Some(z);
         }
+        self.cur.helical |= spiral;
         self.z_change = None;
         self.extend_path(m, line);
     }
@@ -1176,6 +1182,7 @@ impl State {
             height,
             rests_on: rests,
             contact,
+            helical: b.helical,
             paths,
             first_line: b.first_line,
             last_line: b.last_line,
@@ -1259,6 +1266,7 @@ pub(crate) mod testing {
             height: 0.2,
             rests_on: index.checked_sub(1).into_iter().collect(),
             contact: Vec::new(),
+            helical: false,
             paths,
             first_line: 1,
             last_line: 1,

@@ -463,6 +463,51 @@ fn a_honeycomb_next_to_a_rewrite_stays_infill_for_the_layer_above() {
     );
 }
 
+/// Spiral vase prints (Cura's `magic_spiralize`, PrusaSlicer's `--spiral-vase`): a turn of
+/// the helix has no one height, and a sphere's top turns were rewritten at a fixed Z (an elbow
+/// by Cura in vase mode: one turn 0 -> 59 mm in air). Nothing of a helical layer is rewritten.
+#[test]
+fn spiral_vase_turns_are_left_as_sliced() {
+    let mut slices = Vec::new();
+    let vase = [
+        "--spiral-vase",
+        "--perimeters",
+        "1",
+        "--top-solid-layers",
+        "0",
+        "--fill-density",
+        "0%",
+    ];
+    if let Some(d) = slice("sphere_stem", &vase) {
+        slices.push(("sphere_stem by PrusaSlicer", d));
+    }
+    for name in ["sphere_stem", "elbow"] {
+        if let Some(d) = slice_cura(&part(name), "creality_ender3", &["magic_spiralize=true"]) {
+            slices.push((name, d));
+        }
+    }
+    for (what, d) in slices {
+        let (_, rep) = rewrite(&d, BridgeMode::Keep);
+        let helical: std::collections::BTreeSet<usize> = all_layers(&d)
+            .iter()
+            .filter(|l| l.kind == LayerKind::Layer && l.helical)
+            .map(|l| l.index + 1)
+            .collect();
+        assert!(
+            helical.len() > 20,
+            "{what}: {} helical layers",
+            helical.len()
+        );
+        for r in &rep.rewrites {
+            assert!(
+                !helical.contains(&r.layer),
+                "{what}: helical layer {} rewritten",
+                r.layer
+            );
+        }
+    }
+}
+
 /// A horizontal cylinder on a post: its first layers are two wings anchored only at the
 /// post, whose first fronts are slivers too small to print. Both wings get their loops (the
 /// growth stopped after two empty fronts: one wing of a Cura slice got none, and the layer
