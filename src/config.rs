@@ -144,6 +144,16 @@ impl SlicerConfig {
         x.is_finite().then_some(x)
     }
 
+    /// Sparse infill density in percent (PrusaSlicer and its forks' `fill_density`, `15%`;
+    /// Cura's `infill_sparse_density` where a header states it).
+    pub fn fill_density(&self) -> Option<f64> {
+        let v = self
+            .get("fill_density")
+            .or_else(|| self.get("infill_sparse_density"))?;
+        let x: f64 = v.trim().trim_end_matches('%').trim().parse().ok()?;
+        (x.is_finite() && (0.0..=100.0).contains(&x)).then_some(x)
+    }
+
     pub fn bool(&self, key: &str) -> Option<bool> {
         match self.get(key)?.trim() {
             "1" | "true" | "True" => Some(true),
@@ -350,6 +360,19 @@ impl SlicerConfig {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn fill_density_is_read_in_percent() {
+        let prusa = SlicerConfig::parse(b"; fill_density = 0%\n");
+        assert_eq!(prusa.fill_density(), Some(0.0));
+        let some = SlicerConfig::parse(b"; fill_density = 15%\n");
+        assert_eq!(some.fill_density(), Some(15.0));
+        assert_eq!(
+            SlicerConfig::parse(b"; fill_density = 150%\n").fill_density(),
+            None
+        );
+        assert_eq!(SlicerConfig::parse(b"G1 X1\n").fill_density(), None);
+    }
+
     #[test]
     fn ultigcode_and_volumetric_e_count_e_as_a_volume() {
         let cura = SlicerConfig::parse(b";FLAVOR:UltiGCode\n;TIME:6666\n");

@@ -370,11 +370,7 @@ pub fn still_unsupported(path: &std::path::Path) -> crate::error::Result<Option<
 
 /// The detection options a file's own settings call for.
 pub fn detect_options(config: &SlicerConfig) -> DetectOptions {
-    DetectOptions {
-        external_width: config.external_perimeter_width(),
-        first_layer_shrink: config.elephant_foot(),
-        ..Default::default()
-    }
+    DetectOptions::for_file(config)
 }
 
 /// Reads a file through region detection and summarises what lies over air.

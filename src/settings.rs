@@ -458,11 +458,7 @@ impl Effective {
 
     /// Region detection settings for a file with `config`.
     pub fn detect_options(&self, config: &SlicerConfig) -> DetectOptions {
-        let mut o = DetectOptions {
-            external_width: config.external_perimeter_width(),
-            first_layer_shrink: config.elephant_foot(),
-            ..Default::default()
-        };
+        let mut o = DetectOptions::for_file(config);
         if let Some(t) = self.number("tolerance") {
             o.tolerance = Tolerance::Distance(t);
         }

@@ -37,6 +37,9 @@ pub struct AreaOptions {
     /// Holes no wider than this (mm) are closed whatever walls them: nothing the layer above
     /// prints across them needs help.
     pub min_hole: f64,
+    /// The slicer prints no sparse infill (`fill_density = 0%`): a part's inside with no
+    /// infill strand in it is air, not a gap the infill rule could not see into.
+    pub hollow: bool,
 }
 
 impl Default for AreaOptions {
@@ -44,6 +47,7 @@ impl Default for AreaOptions {
         AreaOptions {
             gap_close: 6.0,
             min_hole: 1.0,
+            hollow: false,
         }
     }
 }
@@ -363,7 +367,8 @@ pub fn area_from_footprint(
             let area = close_holes(fp, |hole| {
                 contains_own(hole, &inside, &islands)
                     || hole_width_below(hole, opts.min_hole)
-                    || !walled_by(hole, wall_fp.get_or_insert_with(|| wall_zone(&walls)))
+                    || (!opts.hollow
+                        && !walled_by(hole, wall_fp.get_or_insert_with(|| wall_zone(&walls))))
             });
             // Infill the perimeters do not enclose (a slicer setting without perimeters
             // somewhere) still holds up the layer above.
@@ -767,6 +772,34 @@ mod tests {
             "{}",
             area.unsigned_area()
         );
+    }
+
+    #[test]
+    fn a_hollow_part_is_open_inside() {
+        // Two perimeters round nothing (`fill_density = 0%`): the inside, walled by the
+        // inner perimeter, is a gap an infill rule cannot see into unless the part is hollow.
+        let paths = vec![
+            square_loop(Role::ExternalPerimeter, 0.225, 0.225, 19.775, 19.775),
+            square_loop(Role::Perimeter, 0.65, 0.65, 19.35, 19.35),
+        ];
+        let closed = printed_area(&layer(paths.clone()), &AreaOptions::default());
+        assert!((closed.unsigned_area() - 400.0).abs() < 0.5);
+        let hollow = AreaOptions {
+            hollow: true,
+            ..Default::default()
+        };
+        let open = printed_area(&layer(paths.clone()), &hollow);
+        // The ring of the two beads: 20 x 20 less the 18.25 mm square inside the inner one.
+        let ring = 400.0 - 18.25 * 18.25;
+        assert!(
+            (open.unsigned_area() - ring).abs() < 0.5,
+            "{}",
+            open.unsigned_area()
+        );
+        // Infill in it: closed all the same.
+        let mut filled = paths;
+        filled.push(path(Role::Infill, 0.45, &[[2.0, 0.8], [2.0, 19.2]]));
+        assert!((printed_area(&layer(filled), &hollow).unsigned_area() - 400.0).abs() < 0.5);
     }
 
     #[test]

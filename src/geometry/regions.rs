@@ -60,7 +60,7 @@ pub struct DetectOptions {
     pub external_width: f64,
     pub area: AreaOptions,
     /// Try [`super::proof::supported`] before the polygon work (the results are the same
-    /// either way; off only to check that).
+    /// either way; off to check that, and for a hollow part, see [`DetectOptions::for_file`]).
     pub prove: bool,
     /// How much the slicer drew the first layer in from the part's outline (mm; PrusaSlicer's
     /// `elefant_foot_compensation`): the first layer squashes out to the outline, so the
@@ -83,6 +83,24 @@ impl Default for DetectOptions {
 }
 
 impl DetectOptions {
+    /// The defaults for a file sliced with `config`: its external perimeter width and
+    /// elephant foot compensation, and whether its parts are hollow (`fill_density = 0%`).
+    pub fn for_file(config: &crate::layers::SlicerConfig) -> DetectOptions {
+        let hollow = config.fill_density() == Some(0.0);
+        DetectOptions {
+            external_width: config.external_perimeter_width(),
+            first_layer_shrink: config.elephant_foot(),
+            area: AreaOptions {
+                hollow,
+                ..Default::default()
+            },
+            // The quick proof takes a part's inside as held (its step 3): not so in a hollow
+            // part, where a roof's first layer spans air.
+            prove: !hollow,
+            ..Default::default()
+        }
+    }
+
     pub fn tolerance_at(&self, height: f64) -> f64 {
         match self.tolerance {
             Tolerance::Auto => self.external_width / 2.0,

@@ -463,6 +463,32 @@ fn a_honeycomb_next_to_a_rewrite_stays_infill_for_the_layer_above() {
     );
 }
 
+/// A mushroom sliced hollow (`--fill-density 0%`): its cap's roof is the first solid layer
+/// over the hollow inside, 2.9 m of bridge in air. The inside was read as held (a gap the
+/// infill rule could not see into, and the quick proof took it as held): the roof is now a
+/// region and gets loops from the walls inward.
+#[test]
+fn the_roof_of_a_hollow_part_gets_loops() {
+    let args = [
+        "--fill-density",
+        "0%",
+        "--perimeters",
+        "2",
+        "--top-solid-layers",
+        "4",
+    ];
+    let Some(d) = slice("mushroom", &args) else {
+        return;
+    };
+    let (new, _) = rewrite(&d, BridgeMode::Auto);
+    let (before, after) = (check(&d), check(&new));
+    assert!(before.in_air_mm > 2000.0, "{:.1}", before.in_air_mm);
+    cut_to("hollow mushroom", &before, &after, 0.01);
+    for (b, a) in before.layers.iter().zip(&after.layers) {
+        assert!(a.in_air_mm <= b.in_air_mm + 0.3, "layer {}", b.layer);
+    }
+}
+
 /// Spiral vase prints (Cura's `magic_spiralize`, PrusaSlicer's `--spiral-vase`): a turn of
 /// the helix has no one height, and a sphere's top turns were rewritten at a fixed Z (an elbow
 /// by Cura in vase mode: one turn 0 -> 59 mm in air). Nothing of a helical layer is rewritten.
