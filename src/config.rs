@@ -22,6 +22,8 @@ pub struct SlicerConfig {
 /// How many bytes of the head and of the tail of a file hold its configuration.
 pub const HEAD_BYTES: u64 = 64 * 1024;
 pub const TAIL_BYTES: u64 = 512 * 1024;
+/// Most of Cura's `;SETTING_3` profile read (a few kilobytes in practice).
+const CURA_SETTINGS_BYTES: usize = 256 * 1024;
 
 impl SlicerConfig {
     /// Parses `; key = value` lines (PrusaSlicer family, Slic3r, Orca), Simplify3D's
@@ -33,6 +35,9 @@ impl SlicerConfig {
     }
 
     pub fn add_text(&mut self, text: &[u8]) {
+        // Cura's front end serialises the settings the user changed into `;SETTING_3 ` lines
+        // at the end of the file, cut at fixed widths: joined, then read after the rest.
+        let mut cura_settings = String::new();
         for line in text.split(|&b| b == b'\n') {
             let Some(rest) = line.strip_prefix(b";") else {
                 continue;
@@ -40,6 +45,13 @@ impl SlicerConfig {
             let Ok(rest) = std::str::from_utf8(rest) else {
                 continue;
             };
+            // Cut at fixed widths: a line's spaces may be inside a value.
+            if let Some(payload) = rest.strip_prefix("SETTING_3 ") {
+                if cura_settings.len() < CURA_SETTINGS_BYTES {
+                    cura_settings.push_str(payload.trim_end_matches(['\r', '\n']));
+                }
+                continue;
+            }
             let rest = rest.trim();
             if let Some((k, v)) = rest.split_once(" = ") {
                 let k = k.trim();
@@ -93,6 +105,25 @@ impl SlicerConfig {
             } else if let Some(v) = rest.strip_prefix("Layer height:") {
                 self.values
                     .insert("layer_height".to_string(), v.trim().to_string());
+            }
+        }
+        self.add_cura_settings(&cura_settings);
+    }
+
+    /// Reads the `key = value` lines of Cura's serialised profile (`\n`-separated inside a
+    /// JSON string); a value the file states elsewhere is kept.
+    fn add_cura_settings(&mut self, text: &str) {
+        for piece in text.split("\\n") {
+            let Some((k, v)) = piece.split_once(" = ") else {
+                continue;
+            };
+            let k = k.trim();
+            if !k.is_empty() && k.bytes().all(|b| b.is_ascii_alphanumeric() || b == b'_') {
+                // The file escapes the JSON's own escapes: `\\n` ends a line.
+                let v = v.trim().trim_end_matches('\\').trim();
+                self.values
+                    .entry(k.to_string())
+                    .or_insert_with(|| v.to_string());
             }
         }
     }
@@ -360,6 +391,23 @@ impl SlicerConfig {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn cura_front_end_settings_are_read() {
+        // As Cura 4.13 writes them: cut at 80 columns, the JSON's `\n` escaped once more.
+        let text = concat!(
+            ";FLAVOR:Marlin\n",
+            ";SETTING_3 {\"global_quality\": \"[general]\\\\nversion = 4\\\\nname = Fine #2\\\\ndefinit\n",
+            ";SETTING_3 ion = creality_ender3\\\\n\\\\n[values]\\\\nlayer_height = 0.12\\\\n\\\\n\", \"extrud\n",
+            ";SETTING_3 er_quality\": [\"[general]\\\\nversion = 4\\\\n\\\\n[values]\\\\ninfill_sparse_dens\n",
+            ";SETTING_3 ity = 0\\\\nwall_line_count = 3\\\\n\\\\n\"]}\n",
+        );
+        let cfg = SlicerConfig::parse(text.as_bytes());
+        assert_eq!(cfg.fill_density(), Some(0.0));
+        assert_eq!(cfg.number("layer_height"), Some(0.12));
+        assert_eq!(cfg.number("wall_line_count"), Some(3.0));
+        assert_eq!(cfg.get("gcode_flavor"), Some("Marlin"));
+    }
+
     #[test]
     fn fill_density_is_read_in_percent() {
         let prusa = SlicerConfig::parse(b"; fill_density = 0%\n");
