@@ -463,6 +463,48 @@ fn a_honeycomb_next_to_a_rewrite_stays_infill_for_the_layer_above() {
     );
 }
 
+/// A block with bolt holes and a 45-degree chamfered lip, by PrusaSlicer at 0.3 mm with three
+/// perimeters and by Cura for an Ender 3 at 0.28 mm: near the top of the 12 mm hole the
+/// chamfer's thin ring and the hole's closing ceiling are one region, planned wide; no loop
+/// fitted in the strip and its perimeter hung as sliced (47 mm in air on one layer, more than
+/// before the rewrite). A half-width loop now goes under it.
+#[test]
+fn a_chamfer_strip_beside_a_hole_ceiling_is_held() {
+    let mut slices = Vec::new();
+    let args = [
+        "--perimeters",
+        "3",
+        "--fill-pattern",
+        "gyroid",
+        "--layer-height",
+        "0.3",
+        "--first-layer-height",
+        "0.3",
+    ];
+    if let Some(d) = slice("bolt_block", &args) {
+        slices.push(("PrusaSlicer", d));
+    }
+    let settings = ["layer_height=0.28", "wall_line_count=2"];
+    if let Some(d) = slice_cura(&part("bolt_block"), "creality_ender3", &settings) {
+        slices.push(("Cura", d));
+    }
+    for (slicer, d) in slices {
+        let (new, _) = rewrite(&d, BridgeMode::Keep);
+        let (before, after) = (check(&d), check(&new));
+        let what = format!("bolt_block by {slicer}");
+        cut_to(&what, &before, &after, 0.1);
+        for (b, a) in before.layers.iter().zip(&after.layers) {
+            assert!(
+                a.in_air_mm <= b.in_air_mm + 0.3,
+                "{what}: layer {} {:.1} mm in air, {:.1} before",
+                b.layer,
+                a.in_air_mm,
+                b.in_air_mm
+            );
+        }
+    }
+}
+
 /// A mushroom sliced hollow (`--fill-density 0%`): its cap's roof is the first solid layer
 /// over the hollow inside, 2.9 m of bridge in air. The inside was read as held (a gap the
 /// infill rule could not see into, and the quick proof took it as held): the roof is now a
