@@ -194,15 +194,7 @@ fn a_bowl_flank_by_cura_with_one_wall_stays_held_above_its_moved_perimeters() {
     ];
     for (name, d) in slices.into_iter().flatten() {
         let (what, before, after) = judge_one(format!("bowl by Cura ({name})"), &d);
-        for (b, a) in before.layers.iter().zip(&after.layers) {
-            assert!(
-                a.in_air_mm <= b.in_air_mm + 0.3,
-                "{what}: layer {} {:.1} mm in air, {:.1} before",
-                b.layer,
-                a.in_air_mm,
-                b.in_air_mm
-            );
-        }
+        no_layer_worse(&what, &before, &after);
     }
 }
 
@@ -493,15 +485,7 @@ fn a_chamfer_strip_beside_a_hole_ceiling_is_held() {
         let (before, after) = (check(&d), check(&new));
         let what = format!("bolt_block by {slicer}");
         cut_to(&what, &before, &after, 0.1);
-        for (b, a) in before.layers.iter().zip(&after.layers) {
-            assert!(
-                a.in_air_mm <= b.in_air_mm + 0.3,
-                "{what}: layer {} {:.1} mm in air, {:.1} before",
-                b.layer,
-                a.in_air_mm,
-                b.in_air_mm
-            );
-        }
+        no_layer_worse(&what, &before, &after);
     }
 }
 
@@ -526,9 +510,7 @@ fn the_roof_of_a_hollow_part_gets_loops() {
     let (before, after) = (check(&d), check(&new));
     assert!(before.in_air_mm > 2000.0, "{:.1}", before.in_air_mm);
     cut_to("hollow mushroom", &before, &after, 0.01);
-    for (b, a) in before.layers.iter().zip(&after.layers) {
-        assert!(a.in_air_mm <= b.in_air_mm + 0.3, "layer {}", b.layer);
-    }
+    no_layer_worse("hollow mushroom", &before, &after);
 }
 
 /// Spiral vase prints (Cura's `magic_spiralize`, PrusaSlicer's `--spiral-vase`): a turn of
@@ -811,6 +793,19 @@ fn a_plate_ringed_by_thick_bridge_perimeters_is_planned_to_its_edge() {
     };
     let (what, before, after) = judge_one("plate_windows by PrusaSlicer, thick bridges".into(), &d);
     held_up(&what, &before, &after, 10.0);
+}
+
+/// No layer has more than 0.3 mm more in air than the slicer left.
+fn no_layer_worse(what: &str, before: &CheckReport, after: &CheckReport) {
+    for (b, a) in before.layers.iter().zip(&after.layers) {
+        assert!(
+            a.in_air_mm <= b.in_air_mm + 0.3,
+            "{what}: layer {} {:.1} mm in air, {:.1} before",
+            b.layer,
+            a.in_air_mm,
+            b.in_air_mm
+        );
+    }
 }
 
 /// The rewrite leaves less than `share` of what the slicer printed in air.
