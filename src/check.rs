@@ -20,7 +20,7 @@ use geo::Area;
 use serde::Serialize;
 
 use crate::geometry::{footprint, nearest_on_segment};
-use crate::layers::{flow_width, Layer, Path};
+use crate::layers::{flow_width, Layer, Path, Role};
 
 /// Settings of the check.
 #[derive(Debug, Clone, Serialize)]
@@ -523,8 +523,47 @@ pub fn check_layer(
     opts: &CheckOptions,
     keep_samples: bool,
 ) -> LayerCheck {
-    check_within(below, layer, filament_area, opts, keep_samples, None)
+    check_within(below, &[], layer, filament_area, opts, keep_samples, None)
 }
+
+/// [`check_layer`] with the layers under those below (`deeper`), which hold the layer's
+/// sparse infill where it is printed taller than the layer: Cura's `infill_sparse_thickness`
+/// lays it every other layer at twice the height (E for twice the width at the layer's
+/// height), on the infill two layers down, and none on the layer between.
+pub fn check_layer_over(
+    below: &[&Layer],
+    deeper: &[&Layer],
+    layer: &Layer,
+    filament_area: f64,
+    opts: &CheckOptions,
+) -> LayerCheck {
+    check_within(below, deeper, layer, filament_area, opts, false, None)
+}
+
+/// E-width above which a layer's sparse infill is taller than the layer ([`check_layer_over`]):
+/// 1.7 times the median E-width of its walls.
+fn tall_infill_width(layer: &Layer, filament_area: f64) -> Option<f64> {
+    if !layer.paths.iter().any(|p| p.role == Role::Infill) {
+        return None;
+    }
+    let mut widths: Vec<f64> = layer
+        .paths
+        .iter()
+        .filter(|p| matches!(p.role, Role::ExternalPerimeter | Role::Perimeter))
+        .flat_map(|p| (0..p.points.len().saturating_sub(1)).map(move |i| (p, i)))
+        .map(|(p, i)| seg_width(p, i, filament_area))
+        .filter(|w| *w > 0.0)
+        .collect();
+    if widths.len() < 8 {
+        return None;
+    }
+    let mid = widths.len() / 2;
+    let (_, m, _) = widths.select_nth_unstable_by(mid, f64::total_cmp);
+    Some(TALL_INFILL * *m)
+}
+
+/// See [`tall_infill_width`].
+const TALL_INFILL: f64 = 1.7;
 
 /// In-air length (mm) of the strands of `layer` that come within `window` (min, max
 /// corners), judged as [`check_layer`] judges them: only what lies near the window is
@@ -536,7 +575,7 @@ pub fn in_air_within(
     window: ([f64; 2], [f64; 2]),
 ) -> f64 {
     let opts = CheckOptions::default();
-    check_within(below, layer, filament_area, &opts, false, Some(window)).in_air_mm
+    check_within(below, &[], layer, filament_area, &opts, false, Some(window)).in_air_mm
 }
 
 /// Whether the box `a` meets the box `b` grown by `m`.
@@ -563,6 +602,7 @@ const WINDOW_MARGIN: f64 = 6.0;
 
 fn check_within(
     below: &[&Layer],
+    deeper: &[&Layer],
     layer: &Layer,
     filament_area: f64,
     opts: &CheckOptions,
@@ -606,8 +646,22 @@ fn check_within(
             }
         }
     }
+    let tall_at = (!deeper.is_empty())
+        .then(|| tall_infill_width(layer, filament_area))
+        .flatten();
+    let mut deep = Grid::new(1.0, min, max);
+    if tall_at.is_some() {
+        for s in deeper
+            .iter()
+            .flat_map(|b| segments(b, filament_area, false))
+        {
+            deep.insert(s);
+        }
+    }
     let mut volume = 0.0;
     for path in layer.paths.iter().filter(|p| judged(p)) {
+        let infill = path.role == Role::Infill;
+        let mut last_deep = None;
         // (distance along the path, sample, supported?)
         let mut samples: Vec<(f64, Sample, bool)> = Vec::new();
         // The path's own segments wait until they are two widths behind.
@@ -640,7 +694,10 @@ fn check_within(
                 }
                 let ok = on_bed
                     || grid.near(p, reach, &mut last)
-                    || own.iter().any(|(_, o)| turned_back(o, a, b, p, reach));
+                    || own.iter().any(|(_, o)| turned_back(o, a, b, p, reach))
+                    || (infill
+                        && tall_at.is_some_and(|t| w > t)
+                        && deep.near(p, reach, &mut last_deep));
                 samples.push((
                     s_here,
                     Sample {

@@ -651,8 +651,9 @@ pub fn check<R: BufRead + Send>(
             for l in &batch[carried..] {
                 let back =
                     (l.rests_on.iter().chain(&l.contact)).map(|&i| l.index.saturating_sub(i));
+                // Three at least: the layers under the one below hold taller infill.
                 span = back
-                    .fold(span, usize::max)
+                    .fold(span.max(3), usize::max)
                     .min(crate::layers::RECENT_LAYERS);
             }
             let done: Vec<LayerCheck> = {
@@ -660,8 +661,19 @@ pub fn check<R: BufRead + Send>(
                 (carried..batch.len())
                     .into_par_iter()
                     .map(|i| {
-                        let below = crate::check::resting_on(&batch[i], batch[..i].iter());
-                        crate::check::check_layer(&below, &batch[i], fa, opts, false)
+                        let earlier = batch[..i].iter();
+                        let below = crate::check::resting_on(&batch[i], earlier.clone());
+                        // The two layers under them hold infill printed two or three times
+                        // as tall as the layer.
+                        let under = |v: &[&'_ crate::layers::Layer]| -> Vec<&crate::layers::Layer> {
+                            v.iter()
+                                .flat_map(|b| b.rests_on.iter())
+                                .filter_map(|&j| earlier.clone().find(|l| l.index == j))
+                                .collect()
+                        };
+                        let mut deeper = under(&below);
+                        deeper.extend(under(&deeper));
+                        crate::check::check_layer_over(&below, &deeper, &batch[i], fa, opts)
                     })
                     .collect()
             };

@@ -329,3 +329,33 @@ fn coasted_wall_loops_still_wall_their_holes() {
         before.time_s
     );
 }
+
+/// Cura's infill layer thickness (`infill_sparse_thickness`) two and three times the layer
+/// height: the sparse infill is laid every second or third layer, taller, on the infill that
+/// many layers down. A plain cylinder read 16.4 m "in air" (every infill strand judged
+/// against the layer just below, which has none there); the check now holds it.
+#[test]
+fn combined_infill_is_held_by_the_infill_it_is_laid_on() {
+    for thickness in ["0.2", "0.3"] {
+        let settings = [
+            "layer_height=0.1".to_string(),
+            format!("infill_sparse_thickness={thickness}"),
+        ];
+        let settings: Vec<&str> = settings.iter().map(String::as_str).collect();
+        let Some(d) = slice_cura(&part("vase_cylinder"), "creality_ender3", &settings) else {
+            return;
+        };
+        let c = printonair::report::check(
+            &d[..],
+            SlicerConfig::parse(&d),
+            &CheckOptions::default(),
+            "x",
+        )
+        .unwrap();
+        assert!(
+            c.in_air_mm < 1.0,
+            "infill {thickness} mm: {:.1} mm in air",
+            c.in_air_mm
+        );
+    }
+}
