@@ -376,19 +376,15 @@ fn with_contact(
 ) -> Option<MultiPolygon<f64>> {
     use geo::BoundingRect;
     const MARGIN: f64 = 3.0;
+    let grown = geo::coord! { x: MARGIN, y: MARGIN };
     let boxes: Vec<geo::Rect<f64>> = regions
         .iter()
         .filter_map(|r| r.polygon.bounding_rect())
+        .map(|b| geo::Rect::new(b.min() - grown, b.max() + grown))
         .collect();
     let near = |pts: &[[f64; 2]]| {
-        super::points_box(pts).is_some_and(|b| {
-            boxes.iter().any(|r| {
-                b.min().x <= r.max().x + MARGIN
-                    && r.min().x - MARGIN <= b.max().x
-                    && b.min().y <= r.max().y + MARGIN
-                    && r.min().y - MARGIN <= b.max().y
-            })
-        })
+        super::points_box(pts)
+            .is_some_and(|b| boxes.iter().any(|r| super::regions::boxes_meet(&b, r)))
     };
     let lines: Vec<(&[[f64; 2]], f64)> = hist
         .iter()

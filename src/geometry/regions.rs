@@ -257,7 +257,7 @@ fn support_only(r: &Region, layer: &Layer, boxes: &[Option<Rect<f64>>]) -> bool 
     only(&near)
 }
 
-fn boxes_meet(a: &Rect<f64>, b: &Rect<f64>) -> bool {
+pub(super) fn boxes_meet(a: &Rect<f64>, b: &Rect<f64>) -> bool {
     a.min().x <= b.max().x
         && b.min().x <= a.max().x
         && a.min().y <= b.max().y
