@@ -1742,7 +1742,7 @@ impl<'a> PoaPass<'a> {
         let over_wide = self
             .wide_below
             .as_ref()
-            .filter(|wb| wb.index + 1 == layer.index && layer.on_previous())
+            .filter(|wb| wb.index + 1 == layer.index && layer.over_previous())
             .map(|wb| {
                 // Made near the chosen regions only (the planner reads nothing farther): a
                 // plate's worth of loops costs as much to buffer as the region search.
@@ -1808,7 +1808,11 @@ impl<'a> PoaPass<'a> {
                 }
             });
         let below = match (&self.rewritten_below, &over_wide) {
-            (Some((i, area)), _) if i + 1 == layer.index && layer.on_previous() => area,
+            // A layer also resting on older layers through its taller beads (combined infill) grows
+            // from the layer before as rewritten all the same: its walls stand on that one (a
+            // 67-degree ledge, one wall, infill every other layer: every second layer's loops
+            // grew from the perimeter as sliced below, 19.4 mm in air each).
+            (Some((i, area)), _) if i + 1 == layer.index && layer.over_previous() => area,
             (_, Some(area)) => area,
             // A layer with regions of its own always has the area below.
             _ => d.below.as_ref().unwrap_or(&crate::geometry::NO_AREA),
@@ -1972,7 +1976,7 @@ impl PoaPass<'_> {
         let area = || own_area.get_or_init(|| d.area_or_compute(&self.opts.detect));
         let (regions, above_rewrite) = match &self.rewritten_below {
             Some((i, below))
-                if i + 1 == d.layer.index && !d.layer.on_bed() && d.layer.on_previous() =>
+                if i + 1 == d.layer.index && !d.layer.on_bed() && d.layer.over_previous() =>
             {
                 // The moved perimeters come in pieces: so do the regions they leave.
                 let opts = crate::geometry::DetectOptions {
@@ -2258,6 +2262,7 @@ fn reread(layer: &Layer, bytes: &[u8], config: &SlicerConfig) -> Option<Layer> {
         z: layer.z,
         height: layer.height,
         rests_on: layer.rests_on.clone(),
+        walls_on_previous: layer.walls_on_previous,
         contact: layer.contact.clone(),
         helical: layer.helical,
         paths,

@@ -118,6 +118,10 @@ pub struct Layer {
     /// layer before it; several where objects of different layer heights interleave (see
     /// [`rests_on`]); empty for the first layer and the preamble.
     pub rests_on: Vec<usize>,
+    /// The beads of the layer's own height rest on the layer before it alone, whatever its
+    /// taller beads reach (infill printed every other layer at twice the height rests on
+    /// the layer before that too; objects of another layer height interleaving do not count).
+    pub walls_on_previous: bool,
     /// Earlier layers below those it rests on whose support material holds it across the
     /// slicer's support contact gap (see [`contact_under`]): only their support strands count
     /// under this layer. Empty without support material.
@@ -157,6 +161,12 @@ impl Layer {
     /// else (every layer of a file with one layer height).
     pub fn on_previous(&self) -> bool {
         self.index > 0 && self.rests_on == [self.index - 1]
+    }
+
+    /// Whether the layer is printed on the layer just before it, perhaps through taller beads
+    /// on older ones too (see [`Layer::walls_on_previous`]).
+    pub fn over_previous(&self) -> bool {
+        self.on_previous() || self.walls_on_previous
     }
 }
 
@@ -1149,8 +1159,10 @@ impl State {
         }
         let mut rests = Vec::new();
         let mut contact = Vec::new();
+        let mut walls_on_previous = false;
         if is_layer {
             rests = rests_on(&self.recent, z, reach);
+            walls_on_previous = index >= 1 && rests_on(&self.recent, z, height) == [index - 1];
             if !self.recent_support.is_empty() {
                 let support = |i: usize| {
                     let s = self.recent_support.iter().find(|s| s.0 == i);
@@ -1181,6 +1193,7 @@ impl State {
             z,
             height,
             rests_on: rests,
+            walls_on_previous,
             contact,
             helical: b.helical,
             paths,
@@ -1265,6 +1278,7 @@ pub(crate) mod testing {
             z: 0.2 * (index + 1) as f64,
             height: 0.2,
             rests_on: index.checked_sub(1).into_iter().collect(),
+            walls_on_previous: index >= 1,
             contact: Vec::new(),
             helical: false,
             paths,
