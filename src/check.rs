@@ -541,26 +541,40 @@ pub fn check_layer_over(
 }
 
 /// E-width above which a layer's sparse infill is taller than the layer ([`check_layer_over`]):
-/// 1.7 times the median E-width of its walls.
+/// 1.7 times the median E-width of its walls, by length (a square's single wall is four
+/// segments: counted by segment, too few to judge, and the infill of a one-wall part printed
+/// every other layer read 2.7 m in air).
 fn tall_infill_width(layer: &Layer, filament_area: f64) -> Option<f64> {
     if !layer.paths.iter().any(|p| p.role == Role::Infill) {
         return None;
     }
-    let mut widths: Vec<f64> = layer
+    let mut widths: Vec<(f64, f64)> = layer
         .paths
         .iter()
         .filter(|p| matches!(p.role, Role::ExternalPerimeter | Role::Perimeter))
         .flat_map(|p| (0..p.points.len().saturating_sub(1)).map(move |i| (p, i)))
-        .map(|(p, i)| seg_width(p, i, filament_area))
-        .filter(|w| *w > 0.0)
+        .map(|(p, i)| {
+            let (a, b) = (p.points[i], p.points[i + 1]);
+            let len = ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2)).sqrt();
+            (seg_width(p, i, filament_area), len)
+        })
+        .filter(|(w, len)| *w > 0.0 && *len > 0.0)
         .collect();
-    if widths.len() < 8 {
+    let total: f64 = widths.iter().map(|w| w.1).sum();
+    if total < MIN_WALL_JUDGED {
         return None;
     }
-    let mid = widths.len() / 2;
-    let (_, m, _) = widths.select_nth_unstable_by(mid, f64::total_cmp);
-    Some(TALL_INFILL * *m)
+    widths.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut seen = 0.0;
+    let median = widths.iter().find(|(_, len)| {
+        seen += len;
+        seen >= total / 2.0
+    })?;
+    Some(TALL_INFILL * median.0)
 }
+
+/// Wall length (mm) a layer needs for its walls' width to be judged.
+const MIN_WALL_JUDGED: f64 = 5.0;
 
 /// See [`tall_infill_width`].
 const TALL_INFILL: f64 = 1.7;

@@ -359,3 +359,34 @@ fn combined_infill_is_held_by_the_infill_it_is_laid_on() {
         );
     }
 }
+
+/// The same with one wall round a square column: a layer's wall is four segments, and the
+/// walls' width was judged by segment count (eight needed): the infill printed every other
+/// layer read in air on every one of them (an inverted pyramid: 2.7 m).
+#[test]
+fn combined_infill_inside_a_single_square_wall_is_held() {
+    let settings = [
+        "layer_height=0.2",
+        "wall_line_count=1",
+        "infill_sparse_thickness=0.4",
+        "infill_sparse_density=10",
+    ];
+    let Some(d) = slice_cura(&part("rect_overhang"), "prusa_i3_mk3", &settings) else {
+        return;
+    };
+    let c = printonair::report::check(
+        &d[..],
+        SlicerConfig::parse(&d),
+        &CheckOptions::default(),
+        "x",
+    )
+    .unwrap();
+    // The column, below its overhang at Z 10.
+    let column: f64 = c
+        .layers
+        .iter()
+        .filter(|l| l.z < 9.9)
+        .map(|l| l.in_air_mm)
+        .sum();
+    assert!(column < 1.0, "the column: {column:.1} mm in air");
+}
