@@ -2029,7 +2029,9 @@ impl PoaPass<'_> {
         // rewrite the layer as rewritten is made only when the layer above has regions to
         // plan on it ([`WideBelow`]): buffering every loop of a big region costs as much as
         // the region search.
-        let moves_outline = rewrites.iter().any(|r| r.plan.with_perimeter);
+        let moves_outline = rewrites
+            .iter()
+            .any(|r| r.plan.with_perimeter || r.plan.ladder);
         self.wide_below = None;
         let zones = rewrites.iter().fold(MultiPolygon(Vec::new()), |acc, r| {
             crate::geometry::union(&acc, &r.plan.zone)
@@ -2059,9 +2061,19 @@ impl PoaPass<'_> {
             );
             let back = reread(layer, &bytes, &self.config);
             // Judged where a plan moves the outline (a gradual overhang's, or one on a layer
-            // whose own support moved): the wide plans of a first floating layer grow from
-            // the wall below and cost a plate's worth of samples to judge.
-            let judged = above_rewrite || rewrites.iter().any(|r| r.plan.with_perimeter);
+            // whose own support moved), and where the zones are small: the wide plans of a
+            // first floating layer grow from the wall below and cost a plate's worth of
+            // samples to judge, while small ones cost little and can do worse than the slicer
+            // (a lettering's strokes on a wall, outer wall first: 0 -> 2.3 mm in air).
+            let judged = above_rewrite
+                || rewrites
+                    .iter()
+                    .any(|r| r.plan.with_perimeter || r.plan.ladder)
+                || rewrites
+                    .iter()
+                    .map(|r| geo::Area::unsigned_area(&r.plan.zone))
+                    .sum::<f64>()
+                    < JUDGED_AREA;
             if let Some(worse) = back.as_ref().filter(|_| judged).and_then(|b| {
                 let zones: Vec<&MultiPolygon<f64>> =
                     rewrites.iter().map(|r| &r.plan.zone).collect();
@@ -2134,6 +2146,10 @@ impl PoaPass<'_> {
 /// Leaves out the gradual overhangs whose slicer perimeter the deposition check finds
 /// held all along, by the layers `below` as printed (poa's rewrite of the layer under it
 /// included): moving it would gain nothing there, and the wall above was sliced on it
+/// Total zone area (mm2) of a layer's rewrites under which the rewritten layer is always
+/// judged against the layer as sliced (re-read and checked near the zones).
+const JUDGED_AREA: f64 = 100.0;
+
 /// where it is. They go to the report.
 fn drop_held(
     layer: &Layer,
@@ -2142,27 +2158,36 @@ fn drop_held(
     loop_width: f64,
     filament_area: f64,
 ) -> (Vec<RegionRewrite>, Vec<SkippedRegion>) {
-    if below.is_empty() || !rewrites.iter().any(|r| r.plan.with_perimeter) {
+    if below.is_empty()
+        || !rewrites
+            .iter()
+            .any(|r| r.plan.with_perimeter || r.plan.ladder)
+    {
         return (rewrites, Vec::new());
     }
     let opts = crate::check::CheckOptions::default();
     let c = crate::check::check_layer(below, layer, filament_area, &opts, true);
     let walls = wall_lines(layer);
-    let unheld: Vec<[f64; 2]> = c
+    let unheld: Vec<([f64; 2], bool)> = c
         .samples
         .iter()
         .filter(|s| s.support != crate::check::Support::Supported)
         .filter(|s| walls.binary_search(&s.line).is_ok())
-        .map(|s| s.point)
+        .map(|s| (s.point, s.support == crate::check::Support::InAir))
         .collect();
     let mut kept = Vec::with_capacity(rewrites.len());
     let mut skipped = Vec::new();
     for r in rewrites {
-        let held = r.plan.with_perimeter && {
+        let held = (r.plan.with_perimeter || r.plan.ladder) && {
             // The perimeter's centreline runs up to half a width inside the zone's edge.
             let near = crate::geometry::offset(&r.plan.zone, loop_width / 2.0 + 0.05);
             let index = RingIndex::new(&near);
-            !unheld.iter().any(|p| index.contains(*p))
+            // A narrow cantilever's walls out and back are a short bridge where they hold at
+            // both ends (a letter's stroke 3 mm out of a wall): rungs there cost time for
+            // nothing the check sees.
+            !unheld
+                .iter()
+                .any(|(p, in_air)| (*in_air || !r.plan.ladder) && index.contains(*p))
         };
         if held {
             skipped.push(SkippedRegion {
@@ -2474,6 +2499,7 @@ mod tests {
             strands: vec![ring(0.2, 0.2, 4.8, 8.8)],
             loops,
             with_perimeter: false,
+            ladder: false,
         };
         // A 5 x 9 mm first layer: its perimeter alone would take out its solid infill.
         assert!(leaves_a_hole(&plan(mp(vec![rect(0.0, 0.0, 5.0, 9.0)]), 0)));

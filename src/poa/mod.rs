@@ -122,6 +122,9 @@ pub struct Plan {
     /// slicer printed the external perimeter it replaces, after the layer's inner
     /// perimeters, which hold it up as they held the slicer's.
     pub with_perimeter: bool,
+    /// A narrow cantilever's plan ([`ladder`]): rungs across the strip instead of the
+    /// slicer's perimeter, so the outline the layer above stands on is poa's.
+    pub ladder: bool,
 }
 
 pub use crate::geometry::polyline_length;
@@ -205,6 +208,7 @@ pub fn plan(
             strands: Vec::new(),
             loops: 0,
             with_perimeter: false,
+            ladder: false,
         };
     };
     let below_loc = intersection(
@@ -236,6 +240,7 @@ pub fn plan(
             strands: Vec::new(),
             loops: 0,
             with_perimeter: false,
+            ladder: false,
         };
     }
 
@@ -351,12 +356,18 @@ pub fn plan(
                 loops = k;
             }
         }
+        if loops == 0 && region.max_distance > CANTILEVER_REACH {
+            if let Some(plan) = ladder(&zone, &below_loc, w, step, start) {
+                return plan;
+            }
+        }
         strands.extend(Shape::perimeter(we).strands(perimeter, we, &mut at));
         return Plan {
             zone,
             strands,
             loops,
             with_perimeter: true,
+            ladder: false,
         };
     }
 
@@ -447,7 +458,60 @@ pub fn plan(
         strands,
         loops: loops_count,
         with_perimeter: false,
+        ladder: false,
     }
+}
+
+/// A thin region with no loop reaching farther than this (mm) from what holds it is a narrow
+/// cantilever, not a gradual overhang's ring: [`ladder`]. Shorter ones (a letter's stroke
+/// 3 mm out of a wall) keep the slicer's loop out and back, its perimeter moved onto the
+/// layer below: a short bridge held at both ends (rungs there left more in air over
+/// lettering: 13.5 -> 27.3 mm).
+const CANTILEVER_REACH: f64 = 5.0;
+
+/// The plan of a narrow cantilever: a strip no wider than a bead or two that holds on at one
+/// end only (the tangent layer of a horizontal cylinder's underside, a coat hook's arm at
+/// 0.15 mm layers: 26 mm long, 0.7 mm wide, its one perimeter loop all in air). No ring of the
+/// layer below runs beside it, and the strip has no room for a contour: the zone is printed
+/// as short strands across it, each a step farther from the wall below than the one before,
+/// from the wall outward (a ladder), each biting into the last; no perimeter, since the rungs
+/// fill the strip. `None` when no rung fits.
+fn ladder(
+    zone: &MultiPolygon<f64>,
+    below: &MultiPolygon<f64>,
+    w: f64,
+    step: f64,
+    start: [f64; 2],
+) -> Option<Plan> {
+    let extent =
+        geo::BoundingRect::bounding_rect(zone).map_or(0.0, |b| b.width().hypot(b.height()));
+    let mut at = start;
+    let mut strands = Vec::new();
+    let mut loops = 0;
+    for k in 1..=(extent.min(2000.0) / step).ceil() as usize + 2 {
+        let ring = rings(&offset(below, k as f64 * step - w / 2.0));
+        let pieces = clip_lines(&ring, zone, true);
+        if pieces.is_empty() && loops > 0 {
+            break;
+        }
+        let shape = Shape {
+            kind: StrandKind::Loop,
+            loop_index: k,
+            width: w,
+        };
+        let before = strands.len();
+        strands.extend(shape.strands(pieces, w / 4.0, &mut at));
+        if strands.len() > before {
+            loops = k;
+        }
+    }
+    (loops > 0).then(|| Plan {
+        zone: zone.clone(),
+        strands,
+        loops,
+        with_perimeter: false,
+        ladder: true,
+    })
 }
 
 /// Orders the loops' pieces (loop `i` at index `i`) so that each piece rests on what is

@@ -1195,3 +1195,40 @@ fn a_pin_with_infill_every_other_layer_keeps_its_inside() {
     held_up_to("pin_washer", &before, &after, 5.0, 8.3);
     no_layer_worse("pin_washer", &before, &after);
 }
+
+/// The round arm at 0.15 mm layers: its first layer is the tangent of the half round, a strip
+/// 26 mm long and 0.7 mm wide held at the wall only, printed by the slicer as one loop out and
+/// back, all in air (51 mm). No ring of the layer below runs beside it and it has no room for
+/// a contour: it is printed as a ladder of short strands across it from the wall outward.
+#[test]
+fn a_narrow_cantilever_is_printed_as_a_ladder_from_the_wall() {
+    let Some(d) = slice("round_arm", &["--layer-height", "0.15"]) else {
+        return;
+    };
+    let (new, rep) = rewrite(&d, BridgeMode::Auto);
+    let (before, after) = (check(&d), check(&new));
+    let tangent = before
+        .layers
+        .iter()
+        .position(|l| l.in_air_mm > 20.0)
+        .expect("the arm's tangent layer is in air as sliced");
+    let (b, a) = (&before.layers[tangent], &after.layers[tangent]);
+    println!(
+        "round arm at 0.15 mm, its tangent layer (Z {}): {:.1} -> {:.1} mm in air",
+        b.z, b.in_air_mm, a.in_air_mm
+    );
+    assert!(
+        a.in_air_mm <= 1.0,
+        "Z {}: {:.1} mm in air",
+        b.z,
+        a.in_air_mm
+    );
+    let rungs = rep
+        .rewrites
+        .iter()
+        .find(|r| (r.z - b.z).abs() < 1e-6)
+        .expect("the tangent layer rewritten");
+    assert!(rungs.loops > 20 && !rungs.gradual, "{rungs:?}");
+    held_up("round_arm at 0.15 mm", &before, &after, 5.0);
+    no_layer_worse("round_arm at 0.15 mm", &before, &after);
+}
