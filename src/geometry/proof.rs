@@ -532,11 +532,12 @@ pub fn why_not(
     // 1. The outline lies within the tolerance of the outline below.
     for s in &here.grid.segs {
         let mut last: Option<Seg> = None;
+        let covers_at = |q: [f64; 2], t: &Seg| {
+            let need = tol - OFFSET_SLACK - ARC_SHARE * t.half - STEP / 2.0 + t.half - s.half;
+            need > 0.0 && dist2(q, t) <= need * need
+        };
         for q in samples(s.a, s.b) {
-            let covers = |t: &Seg| {
-                let need = tol - OFFSET_SLACK - ARC_SHARE * t.half - STEP / 2.0 + t.half - s.half;
-                need > 0.0 && dist2(q, t) <= need * need
-            };
+            let covers = |t: &Seg| covers_at(q, t);
             if last.as_ref().is_some_and(covers) {
                 continue;
             }
@@ -549,6 +550,10 @@ pub fn why_not(
                 ok
             });
             match found {
+                // The distance to a segment is convex along a line: a strand below that
+                // covers this sample and the segment's end covers all between (a wall that
+                // rises straight is proven in two queries a segment, not one every STEP).
+                Some(t) if covers_at(s.b, &t) => break,
                 Some(t) => last = Some(t),
                 None => {
                     return Some(format!(
