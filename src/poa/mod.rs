@@ -362,6 +362,7 @@ pub fn plan(
             }
         }
         strands.extend(Shape::perimeter(we).strands(perimeter, we, &mut at));
+        orient(&mut strands, start);
         return Plan {
             zone,
             strands,
@@ -453,6 +454,7 @@ pub fn plan(
     );
     let loops_count = strands.iter().map(|s| s.loop_index).max().unwrap_or(0);
     strands.extend(finish_order(contour, perimeter, w, we, &mut at));
+    orient(&mut strands, start);
     Plan {
         zone,
         strands,
@@ -505,6 +507,7 @@ fn ladder(
             loops = k;
         }
     }
+    orient(&mut strands, start);
     (loops > 0).then(|| Plan {
         zone: zone.clone(),
         strands,
@@ -876,6 +879,71 @@ fn cut_ring(p: &mut Polyline, i: usize, t: f64) {
     *p = ring;
 }
 
+/// Turns the open strands of a plan end for end where that shortens the travel between
+/// them, keeping their order (each strand rests on those before it, whichever way it is
+/// laid): the order is chosen a group at a time from where the nozzle is, so the last
+/// piece of one loop could end at the far side of the next loop's nearer end (a hook's
+/// short rings: 4.0 mm of travel for 11.8 mm of loops, 3.0 turned). Closed strands keep
+/// their seams. Exact over the whole sequence: two states per strand.
+fn orient(strands: &mut [Strand], start: [f64; 2]) {
+    if strands.len() < 2 {
+        return;
+    }
+    let ends = |s: &Strand, reversed: bool| -> ([f64; 2], [f64; 2]) {
+        let (a, b) = (s.points[0], s.points[s.points.len() - 1]);
+        if reversed {
+            (b, a)
+        } else {
+            (a, b)
+        }
+    };
+    let open = |s: &Strand| s.points.len() >= 2 && !is_closed(&s.points);
+    // cost[o]: least travel up to this strand laid forward (0) or reversed (1); how[i][o]:
+    // the orientation of strand i - 1 that gave it.
+    let mut how: Vec<[bool; 2]> = Vec::with_capacity(strands.len());
+    let mut cost = [0.0f64; 2];
+    let mut prev: Option<&Strand> = None;
+    for s in strands.iter() {
+        if s.points.is_empty() {
+            return;
+        }
+        let mut next = [f64::INFINITY; 2];
+        let mut from = [false; 2];
+        for (o, slot) in next.iter_mut().enumerate() {
+            if o == 1 && !open(s) {
+                continue;
+            }
+            let begin = ends(s, o == 1).0;
+            match prev {
+                None => *slot = dist2(start, begin).sqrt(),
+                Some(p) => {
+                    for po in [false, true] {
+                        if po && !open(p) {
+                            continue;
+                        }
+                        let c = cost[po as usize] + dist2(ends(p, po).1, begin).sqrt();
+                        if c < *slot {
+                            *slot = c;
+                            from[o] = po;
+                        }
+                    }
+                }
+            }
+        }
+        how.push(from);
+        cost = next;
+        prev = Some(s);
+    }
+    // Ties keep each strand as it was ordered.
+    let mut o = cost[1] + 1e-9 < cost[0];
+    for i in (0..strands.len()).rev() {
+        if o {
+            strands[i].points.reverse();
+        }
+        o = how[i][o as usize];
+    }
+}
+
 fn is_closed(p: &Polyline) -> bool {
     p.len() > 3 && dist2(p[0], p[p.len() - 1]) < 1e-12
 }
@@ -890,6 +958,58 @@ mod tests {
     use geo::{Contains, Polygon};
 
     const W: f64 = 0.45;
+
+    #[test]
+    fn strands_are_turned_end_for_end_to_shorten_the_travel_in_their_order() {
+        let strand = |pts: &[[f64; 2]]| Strand {
+            kind: StrandKind::Loop,
+            loop_index: 1,
+            points: pts.to_vec(),
+            width: 0.45,
+        };
+        let travel = |v: &[Strand], start: [f64; 2]| {
+            let mut at = start;
+            let mut t = 0.0;
+            for s in v {
+                t += dist2(at, s.points[0]).sqrt();
+                at = s.points[s.points.len() - 1];
+            }
+            t
+        };
+        // Three short arcs of a hook's ring, as the greedy order laid them: the first ends
+        // at the far side of the second's nearer end, the second at the far side of the third.
+        let mut v = vec![
+            strand(&[[0.0, 0.0], [1.0, 0.0], [1.0, 1.0]]),
+            strand(&[[3.0, 1.0], [3.0, 0.0]]),
+            strand(&[[1.0, -1.0], [2.0, -1.0]]),
+            // A closed ring keeps its seam.
+            strand(&[[5.0, 5.0], [6.0, 5.0], [6.0, 6.0], [5.0, 5.0]]),
+        ];
+        let before = travel(&v, [0.0, 0.0]);
+        let firsts: Vec<Vec<[f64; 2]>> = v.iter().map(|s| s.points.clone()).collect();
+        orient(&mut v, [0.0, 0.0]);
+        let after = travel(&v, [0.0, 0.0]);
+        assert!(after < before, "{before} -> {after}");
+        // The same strands in the same order, each laid one way or the other.
+        for (s, f) in v.iter().zip(&firsts) {
+            let mut r = f.clone();
+            r.reverse();
+            assert!(s.points == *f || s.points == r);
+        }
+        assert_eq!(v[3].points, firsts[3]);
+        // The best of the 2^3 orientations of the open strands.
+        let mut best = f64::INFINITY;
+        for mask in 0..8u32 {
+            let mut w: Vec<Strand> = firsts.iter().map(|p| strand(p)).collect();
+            for (i, s) in w.iter_mut().take(3).enumerate() {
+                if mask & (1 << i) != 0 {
+                    s.points.reverse();
+                }
+            }
+            best = best.min(travel(&w, [0.0, 0.0]));
+        }
+        assert!((after - best).abs() < 1e-9, "{after} vs {best}");
+    }
 
     fn default_overlap() -> f64 {
         PoaSettings::default().overlap
