@@ -8,6 +8,12 @@ use crate::common::*;
 use printonair::check::CheckOptions;
 use printonair::layers::SlicerConfig;
 use printonair::poa::BridgeMode;
+use printonair::report::CheckReport;
+
+/// The deposition check of a file, with the default options.
+fn check(d: &[u8]) -> CheckReport {
+    printonair::report::check(d, SlicerConfig::parse(d), &CheckOptions::default(), "x").unwrap()
+}
 
 /// (machine definition, settings): three printers, bridge settings on and off, grid and
 /// lines infill, 0.1-0.2 mm layers.
@@ -95,12 +101,8 @@ fn the_rewrite_leaves_nothing_in_air_on_the_first_floating_layer() {
         let z = first_floating_z(&data);
         let (out, rep) = rewrite(&data, BridgeMode::Keep);
         assert_eq!(rep.regions_rewritten, 1, "{what}");
-        let check = |d: &[u8]| {
-            printonair::report::check(d, SlicerConfig::parse(d), &CheckOptions::default(), "x")
-                .unwrap()
-        };
         let (before, after) = (check(&data), check(&out));
-        let at = |c: &printonair::report::CheckReport| {
+        let at = |c: &CheckReport| {
             c.layers
                 .iter()
                 .find(|l| (l.z - z).abs() < 1e-6)
@@ -121,7 +123,7 @@ fn the_rewrite_leaves_nothing_in_air_on_the_first_floating_layer() {
         );
         assert!(held1 >= 0.99 * len1, "{what}: {held1} of {len1} mm held");
         // The layer above is no worse.
-        let above = |c: &printonair::report::CheckReport| {
+        let above = |c: &CheckReport| {
             c.layers
                 .iter()
                 .filter(|l| l.z > z + 1e-6)
@@ -166,9 +168,6 @@ fn ultigcode_counts_e_in_cubic_millimetres() {
         }
     }
     assert!(loops > 20, "{loops} loops");
-    let check = |d: &[u8]| {
-        printonair::report::check(d, SlicerConfig::parse(d), &CheckOptions::default(), "x").unwrap()
-    };
     let (before, after) = (check(&data), check(&out));
     assert!(before.in_air_mm > 1000.0, "{}", before.in_air_mm);
     assert!(after.in_air_mm < 2.0, "{}", after.in_air_mm);
@@ -305,22 +304,7 @@ fn coasted_wall_loops_still_wall_their_holes() {
         }
     }
     assert!(off < 1.0, "{off:.1} mm of poa's strands lie off the part");
-    let (before, after) = (
-        printonair::report::check(
-            &d[..],
-            SlicerConfig::parse(&d),
-            &CheckOptions::default(),
-            "a",
-        )
-        .unwrap(),
-        printonair::report::check(
-            &new[..],
-            SlicerConfig::parse(&new),
-            &CheckOptions::default(),
-            "b",
-        )
-        .unwrap(),
-    );
+    let (before, after) = (check(&d), check(&new));
     assert!(
         after.time_s <= 1.1 * before.time_s,
         "{} regions rewritten: {:.0} s, {:.0} s as sliced",
@@ -345,13 +329,7 @@ fn combined_infill_is_held_by_the_infill_it_is_laid_on() {
         let Some(d) = slice_cura(&part("vase_cylinder"), "creality_ender3", &settings) else {
             return;
         };
-        let c = printonair::report::check(
-            &d[..],
-            SlicerConfig::parse(&d),
-            &CheckOptions::default(),
-            "x",
-        )
-        .unwrap();
+        let c = check(&d);
         assert!(
             c.in_air_mm < 1.0,
             "infill {thickness} mm: {:.1} mm in air",
@@ -374,13 +352,7 @@ fn combined_infill_inside_a_single_square_wall_is_held() {
     let Some(d) = slice_cura(&part("rect_overhang"), "prusa_i3_mk3", &settings) else {
         return;
     };
-    let c = printonair::report::check(
-        &d[..],
-        SlicerConfig::parse(&d),
-        &CheckOptions::default(),
-        "x",
-    )
-    .unwrap();
+    let c = check(&d);
     // The column, below its overhang at Z 10.
     let column: f64 = c
         .layers
