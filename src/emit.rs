@@ -2030,10 +2030,10 @@ impl PoaPass<'_> {
         // and the ring above hung: 0.7 -> 38.5 mm in air, Cura defaults.) Over a wide
         // rewrite the layer as rewritten is made only when the layer above has regions to
         // plan on it ([`WideBelow`]): buffering every loop of a big region costs as much as
-        // the region search.
-        let moves_outline = rewrites
-            .iter()
-            .any(|r| r.plan.with_perimeter || r.plan.ladder);
+        // the region search. A ladder's rungs fill the strip the slicer printed, as a wide
+        // region's loops do (buffering a hook's 97 overlapping rungs cost more than the rest
+        // of a plate of four).
+        let moves_outline = rewrites.iter().any(|r| r.plan.with_perimeter);
         self.wide_below = None;
         let zones = rewrites.iter().fold(MultiPolygon(Vec::new()), |acc, r| {
             crate::geometry::union(&acc, &r.plan.zone)
@@ -2101,7 +2101,9 @@ impl PoaPass<'_> {
             }
             self.account(layer, &bytes, stats);
             self.reread = back;
-            if !moves_outline {
+            // A layer whose only rewrites are ladders prints the strips the slicer printed:
+            // the layer above is planned on it as detected.
+            if !moves_outline && rewrites.iter().any(|r| !r.plan.ladder) {
                 self.wide_below = Some(WideBelow {
                     index: layer.index,
                     area: area().clone().into_owned(),
