@@ -2147,14 +2147,15 @@ impl PoaPass<'_> {
     }
 }
 
-/// Leaves out the gradual overhangs whose slicer perimeter the deposition check finds
-/// held all along, by the layers `below` as printed (poa's rewrite of the layer under it
-/// included): moving it would gain nothing there, and the wall above was sliced on it
 /// Total zone area (mm2) of a layer's rewrites under which the rewritten layer is always
 /// judged against the layer as sliced (re-read and checked near the zones).
 const JUDGED_AREA: f64 = 100.0;
 
-/// where it is. They go to the report.
+/// Leaves out the gradual overhangs whose slicer perimeter the deposition check finds
+/// held all along, by the layers `below` as printed (poa's rewrite of the layer under it
+/// included): moving it would gain nothing there, and the wall above was sliced on it
+/// where it is; and the ladders whose slicer loop it finds held or short-bridged. They go to
+/// the report.
 fn drop_held(
     layer: &Layer,
     below: &[&Layer],
