@@ -808,6 +808,17 @@ fn no_layer_worse(what: &str, before: &CheckReport, after: &CheckReport) {
     }
 }
 
+/// The deposition check of a slice and of its rewrite, their in-air totals printed for the
+/// record.
+fn before_after(what: &str, d: &[u8], new: &[u8]) -> (CheckReport, CheckReport) {
+    let (before, after) = (check(d), check(new));
+    println!(
+        "{what}: in air {:.1} -> {:.1} mm",
+        before.in_air_mm, after.in_air_mm
+    );
+    (before, after)
+}
+
 /// The rewrite leaves less than `share` of what the slicer printed in air.
 fn cut_to(what: &str, before: &CheckReport, after: &CheckReport, share: f64) {
     assert!(
@@ -1163,11 +1174,7 @@ fn a_steep_ledge_with_infill_every_other_layer_is_held_on_every_layer() {
     };
     let (new, rep) = rewrite(&d, BridgeMode::Auto);
     assert!(rep.regions_rewritten >= 20, "{rep:?}");
-    let (before, after) = (check(&d), check(&new));
-    println!(
-        "steep ledge, infill every other layer: in air {:.1} -> {:.1} mm",
-        before.in_air_mm, after.in_air_mm
-    );
+    let (before, after) = before_after("steep ledge, infill every other layer", &d, &new);
     // The ledge's layers (its top solid layers over 5 % infill are the slicer's business).
     held_up_to("steep_ledge", &before, &after, 5.0, 12.6);
     no_layer_worse("steep_ledge", &before, &after);
@@ -1187,11 +1194,7 @@ fn a_pin_with_infill_every_other_layer_keeps_its_inside() {
     for r in &rep.rewrites {
         assert!(r.z > 8.0 && r.z < 8.5, "{r:?}");
     }
-    let (before, after) = (check(&d), check(&new));
-    println!(
-        "pin and washer, infill every other layer: in air {:.1} -> {:.1} mm",
-        before.in_air_mm, after.in_air_mm
-    );
+    let (before, after) = before_after("pin and washer, infill every other layer", &d, &new);
     held_up_to("pin_washer", &before, &after, 5.0, 8.3);
     no_layer_worse("pin_washer", &before, &after);
 }
@@ -1242,11 +1245,7 @@ fn the_layers_over_a_cup_handles_rings_are_no_worse() {
         return;
     };
     let (new, _) = rewrite(&d, BridgeMode::Auto);
-    let (before, after) = (check(&d), check(&new));
-    println!(
-        "cup handle: in air {:.1} -> {:.1} mm",
-        before.in_air_mm, after.in_air_mm
-    );
+    let (before, after) = before_after("cup handle", &d, &new);
     cut_to("cup_handle", &before, &after, 0.5);
     no_layer_worse("cup_handle", &before, &after);
 }
