@@ -21,7 +21,7 @@ use crate::layers::{Layer, LayerKind};
 
 use super::area::{area_from_footprint, outline_strands, Strands};
 use super::proof::{supported, Support};
-use super::{find_regions, DetectOptions, Region};
+use super::{find_regions_as_sliced, DetectOptions, Region};
 
 /// Layers per parallel batch: enough to keep two cores busy, few enough to keep memory flat.
 const BATCH: usize = 4;
@@ -296,12 +296,12 @@ where
                 }
                 match (a, b) {
                     (Some(a), Some(b)) => {
-                        let regions = find_regions(b, l, a, opts);
+                        let regions = find_regions_as_sliced(b, l, a, opts);
                         if regions.is_empty() || l.contact.is_empty() {
                             return (regions, None);
                         }
                         match with_contact(b, l, &regions, &contact_hist, opts) {
-                            Some(b) => (find_regions(&b, l, a, opts), Some(b)),
+                            Some(b) => (find_regions_as_sliced(&b, l, a, opts), Some(b)),
                             None => (regions, None),
                         }
                     }

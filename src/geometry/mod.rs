@@ -18,7 +18,10 @@ pub mod ring_index;
 
 pub use area::{footprint, printed_area, rewritten_area, AreaOptions};
 pub use detect::{detect, read_ahead, Detected};
-pub use regions::{find_regions, DetectOptions, Region, RegionKind, RoleExtrusion, Tolerance};
+pub use regions::{
+    find_regions, find_regions_as_sliced, DetectOptions, Region, RegionKind, RoleExtrusion,
+    Tolerance,
+};
 pub use ring_index::RingIndex;
 
 use geo::{MultiPolygon, Polygon};

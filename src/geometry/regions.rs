@@ -230,15 +230,27 @@ pub fn find_regions(
         // the part is rewritten (a region of support alone would get loops over it and
         // nothing taken out).
         .filter(|r| !support_only(r, layer, &boxes))
-        // Sparse infill over a hole of the layer below that this layer fills is the part's
-        // inside: one wall and infill printed every other layer (PrusaSlicer's
-        // `infill_every_layers`, Cura's `infill_sparse_thickness`) leave the layer below a
-        // ring of wall round nothing, which reads as a hole walled by the external perimeter.
-        // A real hole is closed by bridging solid infill, never by sparse infill (a pin's
-        // inside got ten loops where the combined infill went; the check found 13.6 mm of
-        // them in air).
-        .filter(|r| !infill_in_a_hole(r, below))
         .collect()
+}
+
+/// [`find_regions`] on a layer below as the slicer printed it (not as poa rewrote it, whose
+/// holes beside the zones are pockets the splice cut): sparse infill over a hole of the layer
+/// below that this layer fills is the part's inside. One wall and infill printed every other
+/// layer (PrusaSlicer's `infill_every_layers`, Cura's `infill_sparse_thickness`) leave the
+/// layer below a ring of wall round nothing, which reads as a hole walled by the external
+/// perimeter. A real hole is closed by bridging solid infill, never by sparse infill (a pin's
+/// inside got ten loops where the combined infill went; the check found 13.6 mm of them in
+/// air). Over a rewritten layer the filter changed which layers the cascade of a honeycomb
+/// hull reached: 30-39 regions became 36-46.
+pub fn find_regions_as_sliced(
+    below: &MultiPolygon<f64>,
+    layer: &Layer,
+    here: &MultiPolygon<f64>,
+    opts: &DetectOptions,
+) -> Vec<Region> {
+    let mut regions = find_regions(below, layer, here, opts);
+    regions.retain(|r| !infill_in_a_hole(r, below));
+    regions
 }
 
 /// Whether sparse infill is all that prints a region lying in a hole of `below` (or nothing
