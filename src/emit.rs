@@ -1889,17 +1889,14 @@ impl<'a> PoaPass<'a> {
                 s.reason = format!("floating: planned with region {id}, beside it");
             }
         }
-        let plans: Vec<(usize, RegionKind, Plan, f64)> = {
-            use rayon::prelude::*;
-            chosen
-                .par_iter()
-                .zip(others.par_iter())
-                .map(|((id, r), others)| {
-                    let plan = crate::poa::plan(r, below, area, others, widths, settings, start);
-                    (*id, r.kind, plan, object_height(layer, r.object))
-                })
-                .collect()
-        };
+        let jobs: Vec<(&crate::geometry::Region, &crate::poa::Others)> =
+            chosen.iter().map(|(_, r)| *r).zip(others.iter()).collect();
+        let plans: Vec<(usize, RegionKind, Plan, f64)> =
+            crate::poa::plan_all(&jobs, below, area, widths, settings, start)
+                .into_iter()
+                .zip(chosen.iter())
+                .map(|(plan, (id, r))| (*id, r.kind, plan, object_height(layer, r.object)))
+                .collect();
         let mut rewrites = Vec::new();
         for (id, kind, plan, height) in plans {
             if plan.strands.is_empty() || leaves_a_hole(&plan) {
@@ -2035,9 +2032,8 @@ impl PoaPass<'_> {
         // of a plate of four).
         let moves_outline = rewrites.iter().any(|r| r.plan.with_perimeter);
         self.wide_below = None;
-        let zones = rewrites.iter().fold(MultiPolygon(Vec::new()), |acc, r| {
-            crate::geometry::union(&acc, &r.plan.zone)
-        });
+        let zones =
+            crate::geometry::union_all(&rewrites.iter().map(|r| &r.plan.zone).collect::<Vec<_>>());
         self.rewritten_below = if !moves_outline {
             None
         } else {
@@ -2126,7 +2122,7 @@ impl PoaPass<'_> {
                     // found a honeycomb's cells over air, layer after layer).
                     let away = crate::geometry::difference(
                         area(),
-                        &crate::geometry::offset(&zones, AWAY_FROM_ZONES),
+                        &crate::geometry::margin(&zones, AWAY_FROM_ZONES),
                     );
                     let printed = crate::geometry::union(
                         &crate::geometry::printed_area(r, &self.opts.detect.area),
@@ -2185,7 +2181,7 @@ fn drop_held(
     for r in rewrites {
         let held = (r.plan.with_perimeter || r.plan.ladder) && {
             // The perimeter's centreline runs up to half a width inside the zone's edge.
-            let near = crate::geometry::offset(&r.plan.zone, loop_width / 2.0 + 0.05);
+            let near = crate::geometry::margin(&r.plan.zone, loop_width / 2.0 + 0.05);
             let index = RingIndex::new(&near);
             // A narrow cantilever's walls out and back are a short bridge where they hold at
             // both ends (a letter's stroke 3 mm out of a wall): rungs there cost time for

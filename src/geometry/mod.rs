@@ -48,6 +48,18 @@ pub fn offset(mp: &MultiPolygon<f64>, delta: f64) -> MultiPolygon<f64> {
     )
 }
 
+/// Largest distance (mm) by which [`margin`] may move an outline before growing it.
+pub const MARGIN_SIMPLIFY: f64 = 0.01;
+
+/// `mp` grown by `delta` mm as a margin (what lies near a zone): its outline is simplified
+/// first, by [`MARGIN_SIMPLIFY`]. A rewritten zone's outline carries the round joins of the
+/// openings that made it, thousands of points along a bowl's thin ring, and growing them all
+/// by 1.5 mm made offsets whose self-intersections cost tens of milliseconds a layer (and
+/// the booleans with them ten times that); the simplified outline grows in a millisecond.
+pub fn margin(mp: &MultiPolygon<f64>, delta: f64) -> MultiPolygon<f64> {
+    offset(&geo::Simplify::simplify(mp, MARGIN_SIMPLIFY), delta)
+}
+
 /// [`offset`] of the far-apart parts of `mp` separately, on all cores: growing parts that stay
 /// apart cannot merge, so the union Clipper would make is their concatenation. The same
 /// shapes as [`offset`], in another polygon order.
@@ -350,6 +362,30 @@ pub fn union(a: &MultiPolygon<f64>, b: &MultiPolygon<f64>) -> MultiPolygon<f64> 
     geo::BooleanOps::union(a, b)
 }
 
+/// The union of `sets`. Sets whose boxes stay apart cannot meet: their polygons are taken as
+/// they are, and only the groups whose boxes meet ([`box_groups`]) are joined, so that the
+/// zones of a plate's parts cost one boolean each at most, not one per part before (a fold
+/// over sixteen caps took a tenth of the rewrite's time).
+pub fn union_all(sets: &[&MultiPolygon<f64>]) -> MultiPolygon<f64> {
+    use geo::BoundingRect;
+    let boxes: Vec<Box2> = sets
+        .iter()
+        .map(|s| match s.bounding_rect() {
+            Some(b) => ([b.min().x, b.min().y], [b.max().x, b.max().y]),
+            // Empty: a box that meets nothing.
+            None => ([f64::NAN; 2], [f64::NAN; 2]),
+        })
+        .collect();
+    let mut out = Vec::new();
+    for group in box_groups(&boxes) {
+        let joined = group
+            .iter()
+            .fold(MultiPolygon(Vec::new()), |acc, &i| union(&acc, sets[i]));
+        out.extend(joined.0);
+    }
+    MultiPolygon(out)
+}
+
 pub fn intersection(a: &MultiPolygon<f64>, b: &MultiPolygon<f64>) -> MultiPolygon<f64> {
     if a.0.is_empty() || b.0.is_empty() {
         return MultiPolygon::new(Vec::new());
@@ -430,6 +466,50 @@ mod tests {
         assert_ne!(group(0), group(1), "far apart");
         assert_ne!(group(4), group(1), "far apart");
         assert_eq!(groups.last(), Some(&vec![5]), "a NaN box alone, last");
+    }
+
+    #[test]
+    fn a_union_of_many_sets_is_their_union() {
+        // Two overlapping squares, one apart, one touching the first along an edge, one empty.
+        let a = mp(vec![rect(0.0, 0.0, 5.0, 5.0)]);
+        let b = mp(vec![rect(3.0, 3.0, 8.0, 8.0)]);
+        let c = mp(vec![rect(30.0, 0.0, 35.0, 5.0)]);
+        let d = mp(vec![rect(5.0, 0.0, 6.0, 1.0)]);
+        let e = MultiPolygon(Vec::new());
+        let all = union_all(&[&a, &c, &e, &b, &d]);
+        let folded = [&a, &b, &c, &d]
+            .iter()
+            .fold(e.clone(), |acc, s| union(&acc, s));
+        assert!((all.unsigned_area() - folded.unsigned_area()).abs() < 1e-9);
+        assert!((all.unsigned_area() - (25.0 + 25.0 - 4.0 + 25.0 + 1.0)).abs() < 1e-9);
+        // Overlaps are joined: no point of the plane is counted twice.
+        assert_eq!(all.0.len(), 2, "{all:?}");
+        assert!(union_all(&[]).0.is_empty());
+    }
+
+    #[test]
+    fn a_margin_is_the_offset_within_the_simplification() {
+        // A thin ring whose outlines zigzag by 4 um, as booleans leave a gradual overhang's.
+        let ring = |r: f64| {
+            geo::LineString::new(
+                (0..=2000)
+                    .map(|i| {
+                        let a = i as f64 / 2000.0 * std::f64::consts::TAU;
+                        let r = r + if i % 2 == 0 { 0.004 } else { 0.0 };
+                        geo::coord! {x: r * a.cos(), y: r * a.sin()}
+                    })
+                    .collect(),
+            )
+        };
+        let m = mp(vec![Polygon::new(ring(20.3), vec![ring(20.0)])]);
+        let grown = margin(&m, 1.5);
+        let (lo, hi) = (
+            offset(&m, 1.5 - MARGIN_SIMPLIFY),
+            offset(&m, 1.5 + MARGIN_SIMPLIFY),
+        );
+        assert!(difference(&lo, &grown).unsigned_area() < 1e-6);
+        assert!(difference(&grown, &hi).unsigned_area() < 1e-6);
+        assert!(grown.unsigned_area() > 0.99 * offset(&m, 1.5).unsigned_area());
     }
 
     #[test]

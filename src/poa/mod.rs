@@ -18,9 +18,12 @@
 use geo::{Area, MultiPolygon};
 use serde::Serialize;
 
+mod copies;
+pub use copies::plan_all;
+
 use crate::geometry::{
-    clip_lines, closing, difference, grow_within, intersection, near, offset, opening, rings,
-    union, Polyline, Region, RegionKind,
+    clip_lines, closing, difference, grow_within, intersection, margin, near, offset, opening,
+    rings, union, Polyline, Region, RegionKind,
 };
 
 /// What to do with regions anchored on two or more sides.
@@ -196,7 +199,9 @@ pub fn plan(
             .chain(others.absorb.0.iter().cloned())
             .collect(),
     );
-    let hint = offset(&region_mp, widths.tolerance + w);
+    // A window round the region (a margin: the outline of a gradual overhang's thin ring
+    // carries thousands of arc points, which cost more to grow than the rest of its plan).
+    let hint = margin(&region_mp, widths.tolerance + w);
     // Booleans with a whole plate's layer cost as much as the plate: take the parts near by.
     // Cut to boxes round the region, not to its offsets: an offset by the region's reach
     // (12 mm on a mushroom's cap) makes thousands of arc points for a boolean to chew, and
@@ -962,6 +967,29 @@ fn is_closed(p: &Polyline) -> bool {
 }
 
 #[cfg(test)]
+pub(crate) mod testutil {
+    use crate::geometry::{Region, RegionKind};
+    use geo::Polygon;
+
+    /// An overhang region on layer 1 reaching `max_distance` from what holds it.
+    pub fn overhang(polygon: Polygon<f64>, max_distance: f64) -> Region {
+        Region {
+            layer: 1,
+            z: 0.4,
+            height: 0.2,
+            kind: RegionKind::Overhang,
+            area: geo::Area::unsigned_area(&polygon),
+            polygon,
+            max_distance,
+            anchored_length: 0.0,
+            anchors: 1,
+            object: None,
+            extrusions: Vec::new(),
+        }
+    }
+}
+
+#[cfg(test)]
 mod tests {
     //! The planner on literal polygons, judged geometrically: every strand inside the zone,
     //! consecutive loops `step` apart (so each bites `overlap x w` into the one before, and
@@ -1063,19 +1091,7 @@ mod tests {
             .points()
             .map(|p| dist_to([p.x(), p.y()], &rings(below).iter().collect::<Vec<_>>()))
             .fold(0.0, f64::max);
-        Region {
-            layer: 1,
-            z: 0.4,
-            height: 0.2,
-            kind: RegionKind::Overhang,
-            area: geo::Area::unsigned_area(&polygon),
-            polygon,
-            max_distance,
-            anchored_length: 0.0,
-            anchors: 1,
-            object: None,
-            extrusions: Vec::new(),
-        }
+        testutil::overhang(polygon, max_distance)
     }
 
     /// Plans every region of `area` over `below` and checks the plan's geometry.
