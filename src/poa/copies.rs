@@ -32,6 +32,9 @@ struct Surroundings<'a> {
     corner: [f64; 2],
 }
 
+/// Representatives of one area a region is compared with.
+const MAX_CANDIDATES: usize = 32;
+
 /// Largest difference (mm) between two matching regions' reach ([`Region::max_distance`],
 /// sampled at the region's vertices, which float noise moves: 15.0 to 15.5 mm between a
 /// plate's mushroom caps).
@@ -200,10 +203,16 @@ pub fn plan_all(
     for (i, s) in around.iter().enumerate() {
         let key = (regions[i].0.area * 100.0).round() as i64;
         let shared = s.as_ref().and_then(|s| {
-            by_area.get(&key)?.iter().find_map(|&j| {
-                let a = around[j].as_ref()?;
-                translation(a, s).map(|t| (j, t))
-            })
+            // A bounded number of candidates: a layer of many regions of one area that are
+            // not copies stays linear.
+            by_area
+                .get(&key)?
+                .iter()
+                .take(MAX_CANDIDATES)
+                .find_map(|&j| {
+                    let a = around[j].as_ref()?;
+                    translation(a, s).map(|t| (j, t))
+                })
         });
         match shared {
             Some(found) => source.push(found),

@@ -1249,3 +1249,51 @@ fn the_layers_over_a_cup_handles_rings_are_no_worse() {
     cut_to("cup_handle", &before, &after, 0.5);
     no_layer_worse("cup_handle", &before, &after);
 }
+
+#[test]
+fn copies_on_a_plate_are_each_held_by_one_shared_plan() {
+    // Four mushrooms re-sliced by PrusaSlicer (`--duplicate 4`): their caps' surroundings are
+    // the same shape moved, so one plan serves all four. Each copy's cap must still be held
+    // where it stands: every cap rewritten, with the loops and the length of the others,
+    // and the first floating layer held as on a plate of one.
+    let Some(data) = slice("mushroom", &["--duplicate", "4"]) else {
+        return;
+    };
+    let (new, rep) = rewrite(&data, BridgeMode::Keep);
+    let first = rep
+        .rewrites
+        .iter()
+        .map(|r| r.layer)
+        .min()
+        .expect("a rewrite");
+    let caps: Vec<_> = rep.rewrites.iter().filter(|r| r.layer == first).collect();
+    assert_eq!(caps.len(), 4, "{:?}", rep.rewrites);
+    for c in &caps {
+        assert!(c.loops > 10, "{c:?}");
+        assert_eq!(c.loops, caps[0].loops, "{c:?}");
+        assert!(
+            (c.written_length_mm - caps[0].written_length_mm).abs() < 0.01,
+            "{c:?}"
+        );
+    }
+    let (before, after) = before_after("four mushrooms", &data, &new);
+    let at = |r: &CheckReport| r.layers.iter().find(|l| l.layer == first).cloned().unwrap();
+    let (b, a) = (at(&before), at(&after));
+    assert!(
+        b.in_air_mm > 100.0,
+        "the caps hang as sliced: {}",
+        b.in_air_mm
+    );
+    assert!(
+        a.in_air_mm <= 4.0,
+        "{} mm in air on the caps' layer",
+        a.in_air_mm
+    );
+    assert!(
+        a.supported_mm + a.bridged_mm >= 0.99 * a.length_mm,
+        "{} of {} held",
+        a.supported_mm + a.bridged_mm,
+        a.length_mm
+    );
+    no_layer_worse("four mushrooms", &before, &after);
+}
