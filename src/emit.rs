@@ -1919,13 +1919,12 @@ impl<'a> PoaPass<'a> {
     }
 
     /// Adds a rewritten layer's filament and time (by the estimator, with the limits in
-    /// force) to the report.
-    fn account(&mut self, layer: &Layer, bytes: &[u8], mut stats: Vec<RewriteStats>) {
-        // The estimator plans motion only; the pauses poa wrote count on top.
+    /// force: `planned`) to the report.
+    fn account(&mut self, planned: f64, mut stats: Vec<RewriteStats>) {
+        // The estimator plans motion only (`planned`: its time for the layer as rewritten
+        // less as sliced); the pauses poa wrote count on top.
         let dwell: f64 = stats.iter().map(|s| s.dwell_s).sum();
-        let added = layer_time(&self.limits, layer, bytes)
-            - layer_time(&self.limits, layer, &layer.raw)
-            + dwell;
+        let added = planned + dwell;
         // The planner's time for the layer, shared out like the simple model's estimates.
         let simple: f64 = stats.iter().map(|s| s.time_added_s.max(0.0)).sum();
         let n = stats.len().max(1) as f64;
@@ -2057,7 +2056,19 @@ impl PoaPass<'_> {
                 &self.motion,
                 &self.opts.settings,
             );
-            let back = reread(layer, &bytes, &self.config);
+            // The layer read back, and the estimator's time for it as rewritten and as
+            // sliced, side by side: on a plate's first floating layer each is a few
+            // milliseconds of one core.
+            let (back, planned) = rayon::join(
+                || reread(layer, &bytes, &self.config),
+                || {
+                    let (new, old) = rayon::join(
+                        || layer_time(&self.limits, layer, &bytes),
+                        || layer_time(&self.limits, layer, &layer.raw),
+                    );
+                    new - old
+                },
+            );
             // Judged where a plan moves the outline (a gradual overhang's, or one on a layer
             // whose own support moved), and where the zones are small: the wide plans of a
             // first floating layer grow from the wall below and cost a plate's worth of
@@ -2095,7 +2106,7 @@ impl PoaPass<'_> {
                 self.note_wall_width(layer);
                 return Ok(None);
             }
-            self.account(layer, &bytes, stats);
+            self.account(planned, stats);
             self.reread = back;
             // A layer whose only rewrites are ladders prints the strips the slicer printed:
             // the layer above is planned on it as detected.
