@@ -132,6 +132,9 @@ pub struct Plan {
 
 pub use crate::geometry::polyline_length;
 
+/// Largest distance (mm) by which a zone's outline is simplified before it is opened.
+const ZONE_SIMPLIFY: f64 = 0.002;
+
 /// Zones narrower than this are slivers of numeric noise along walls, not overhang.
 const SLIVER: f64 = 0.03;
 /// In a gradual overhang's thin ring, a loop whose centre lies this many widths or more
@@ -232,8 +235,15 @@ pub fn plan(
     );
 
     // The zone: what sectB prints beyond sectA around this region, slivers dropped.
+    // Simplified by 2 um before the opening: the booleans leave thousands of points on a
+    // thin ring (a bowl's: 945 -> 176 points), which every later step pays for; the opening
+    // alone took 1.9 ms there, 0.3 ms after, and the zone moves by under a micrometre on
+    // average.
     let mut zone = opening(
-        &intersection(&difference(&area_loc, &offset(&below_loc, 0.01)), &hint),
+        &geo::Simplify::simplify(
+            &intersection(&difference(&area_loc, &offset(&below_loc, 0.01)), &hint),
+            ZONE_SIMPLIFY,
+        ),
         SLIVER,
     );
     if !others.keep_out.0.is_empty() {
