@@ -398,21 +398,27 @@ pub fn intersection(a: &MultiPolygon<f64>, b: &MultiPolygon<f64>) -> MultiPolygo
 /// Booleans and point tests cost in proportion to every vertex they are given; a region of
 /// a plate of many parts only needs the parts around it.
 pub fn near(mp: &MultiPolygon<f64>, rect: &geo::Rect<f64>, margin: f64) -> MultiPolygon<f64> {
+    MultiPolygon::new(near_refs(mp, rect, margin).into_iter().cloned().collect())
+}
+
+/// [`near`], borrowed: the polygons in their order.
+pub fn near_refs<'a>(
+    mp: &'a MultiPolygon<f64>,
+    rect: &geo::Rect<f64>,
+    margin: f64,
+) -> Vec<&'a Polygon<f64>> {
     use geo::BoundingRect;
     let (lo, hi) = (rect.min(), rect.max());
-    MultiPolygon::new(
-        mp.0.iter()
-            .filter(|p| {
-                p.bounding_rect().is_some_and(|b| {
-                    b.min().x <= hi.x + margin
-                        && b.max().x >= lo.x - margin
-                        && b.min().y <= hi.y + margin
-                        && b.max().y >= lo.y - margin
-                })
+    mp.0.iter()
+        .filter(|p| {
+            p.bounding_rect().is_some_and(|b| {
+                b.min().x <= hi.x + margin
+                    && b.max().x >= lo.x - margin
+                    && b.min().y <= hi.y + margin
+                    && b.max().y >= lo.y - margin
             })
-            .cloned()
-            .collect(),
-    )
+        })
+        .collect()
 }
 
 /// A polygon's exterior as a polygon without holes.

@@ -13,7 +13,7 @@
 use geo::{BoundingRect, MultiPolygon, Polygon};
 
 use super::{plan, Others, Plan, PoaSettings, Widths};
-use crate::geometry::{near, Region};
+use crate::geometry::{near_refs, Region};
 
 /// Largest difference (mm) between a vertex and its match moved by the translation: the
 /// slicer writes micrometres, and the areas poa derives from two copies differ by float
@@ -25,9 +25,10 @@ const MATCH_TOL: f64 = 2e-3;
 struct Surroundings<'a> {
     region: &'a Region,
     others: &'a Others,
-    below: MultiPolygon<f64>,
-    area: MultiPolygon<f64>,
-    keep_out: MultiPolygon<f64>,
+    // Borrowed, never copied: a layer's big polygon near many regions is held once.
+    below: Vec<&'a Polygon<f64>>,
+    area: Vec<&'a Polygon<f64>>,
+    keep_out: Vec<&'a Polygon<f64>>,
     /// Corner of the region's box: where the translation is read.
     corner: [f64; 2],
 }
@@ -56,8 +57,8 @@ fn area_window(widths: &Widths) -> f64 {
 /// Whether every polygon of `set` whose box comes within `outer` of `b` lies within `inner`
 /// of it: then any window between the two selects those polygons whole, as [`plan`] does
 /// with its own (which carries the noise of the region's outline).
-fn isolated(set: &MultiPolygon<f64>, b: &geo::Rect<f64>, inner: f64, outer: f64) -> bool {
-    set.0.iter().all(|p| {
+fn isolated(set: &[&Polygon<f64>], b: &geo::Rect<f64>, inner: f64, outer: f64) -> bool {
+    set.iter().all(|p| {
         p.bounding_rect().is_some_and(|q| {
             let meets = q.min().x <= b.max().x + outer
                 && q.max().x >= b.min().x - outer
@@ -76,8 +77,8 @@ fn isolated(set: &MultiPolygon<f64>, b: &geo::Rect<f64>, inner: f64, outer: f64)
 fn surroundings<'a>(
     region: &'a Region,
     others: &'a Others,
-    below: &MultiPolygon<f64>,
-    area: &MultiPolygon<f64>,
+    below: &'a MultiPolygon<f64>,
+    area: &'a MultiPolygon<f64>,
     widths: &Widths,
 ) -> Option<Surroundings<'a>> {
     // The noise of the planner's own box (the region grown by a round offset).
@@ -86,9 +87,9 @@ fn surroundings<'a>(
     let md = region.max_distance;
     let outer = below_window(md + REACH_SLACK, widths) + EDGE;
     let inner = below_window((md - REACH_SLACK).max(0.0), widths) - EDGE;
-    let below = near(below, &b, outer);
+    let below = near_refs(below, &b, outer);
     let area_outer = area_window(widths) + EDGE;
-    let area = near(area, &b, area_outer);
+    let area = near_refs(area, &b, area_outer);
     let whole = isolated(&below, &b, inner, outer)
         && isolated(&area, &b, area_window(widths) - EDGE, area_outer);
     whole.then(|| Surroundings {
@@ -96,7 +97,7 @@ fn surroundings<'a>(
         others,
         below,
         area,
-        keep_out: near(&others.keep_out, &b, outer),
+        keep_out: near_refs(&others.keep_out, &b, outer),
         corner: [b.min().x, b.min().y],
     })
 }
@@ -119,8 +120,8 @@ fn same_polygon(a: &Polygon<f64>, b: &Polygon<f64>, t: [f64; 2]) -> bool {
 
 /// Whether every polygon of `a` moved by `t` is the polygon of `b` at its place, vertex for
 /// vertex.
-fn same_shapes(a: &MultiPolygon<f64>, b: &MultiPolygon<f64>, t: [f64; 2]) -> bool {
-    a.0.len() == b.0.len() && a.0.iter().zip(&b.0).all(|(p, q)| same_polygon(p, q, t))
+fn same_shapes(a: &[&Polygon<f64>], b: &[&Polygon<f64>], t: [f64; 2]) -> bool {
+    a.len() == b.len() && a.iter().zip(b).all(|(p, q)| same_polygon(p, q, t))
 }
 
 /// Whether two regions (derived with float noise) are the same region moved by `t`: box,
@@ -146,12 +147,7 @@ fn same_region(a: &Region, b: &Region, t: [f64; 2]) -> bool {
 fn translation(a: &Surroundings<'_>, b: &Surroundings<'_>) -> Option<[f64; 2]> {
     // The first vertex of the layer's polygons near by fixes the translation exactly (the
     // region's own box carries the noise of its derivation).
-    let first = |s: &Surroundings<'_>| {
-        s.area
-            .0
-            .first()
-            .and_then(|p| p.exterior().0.first().copied())
-    };
+    let first = |s: &Surroundings<'_>| s.area.first().and_then(|p| p.exterior().0.first().copied());
     let t = match (first(a), first(b)) {
         (Some(p), Some(q)) => [q.x - p.x, q.y - p.y],
         (None, None) => [b.corner[0] - a.corner[0], b.corner[1] - a.corner[1]],
