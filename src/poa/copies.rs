@@ -54,21 +54,17 @@ fn area_window(widths: &Widths) -> f64 {
     (widths.tolerance + widths.loop_width) + 2.0 * widths.perimeter_width + 2.0
 }
 
-/// Whether every polygon of `set` whose box comes within `outer` of `b` lies within `inner`
-/// of it: then any window between the two selects those polygons whole, as [`plan`] does
-/// with its own (which carries the noise of the region's outline).
-fn isolated(set: &[&Polygon<f64>], b: &geo::Rect<f64>, inner: f64, outer: f64) -> bool {
+/// Whether every polygon of `set` (those whose boxes come within the outer window of `b`,
+/// [`near_refs`]) lies within `inner` of `b`: then any window between the two selects those
+/// polygons whole, as [`plan`] does with its own (which carries the noise of the region's
+/// outline).
+fn isolated(set: &[&Polygon<f64>], b: &geo::Rect<f64>, inner: f64) -> bool {
     set.iter().all(|p| {
         p.bounding_rect().is_some_and(|q| {
-            let meets = q.min().x <= b.max().x + outer
-                && q.max().x >= b.min().x - outer
-                && q.min().y <= b.max().y + outer
-                && q.max().y >= b.min().y - outer;
-            !meets
-                || (q.min().x >= b.min().x - inner
-                    && q.max().x <= b.max().x + inner
-                    && q.min().y >= b.min().y - inner
-                    && q.max().y <= b.max().y + inner)
+            q.min().x >= b.min().x - inner
+                && q.max().x <= b.max().x + inner
+                && q.min().y >= b.min().y - inner
+                && q.max().y <= b.max().y + inner
         })
     })
 }
@@ -90,8 +86,7 @@ fn surroundings<'a>(
     let below = near_refs(below, &b, outer);
     let area_outer = area_window(widths) + EDGE;
     let area = near_refs(area, &b, area_outer);
-    let whole = isolated(&below, &b, inner, outer)
-        && isolated(&area, &b, area_window(widths) - EDGE, area_outer);
+    let whole = isolated(&below, &b, inner) && isolated(&area, &b, area_window(widths) - EDGE);
     whole.then(|| Surroundings {
         region,
         others,
