@@ -83,7 +83,8 @@ fn dist2(q: [f64; 2], s: &Seg) -> f64 {
 struct Grid {
     segs: Vec<Seg>,
     origin: [f64; 2],
-    cell: f64,
+    /// 1 / cell size (1/mm).
+    inv_cell: f64,
     nx: usize,
     ny: usize,
     /// Cell `i` holds `items[start[i]..start[i + 1]]`.
@@ -123,7 +124,7 @@ impl Grid {
         let mut grid = Grid {
             segs,
             origin: [b[0], b[1]],
-            cell,
+            inv_cell: 1.0 / cell,
             nx,
             ny,
             start: Vec::new(),
@@ -156,16 +157,21 @@ impl Grid {
     }
 
     fn col(&self, x: f64) -> usize {
-        super::cell_of(x, self.origin[0], self.cell, self.nx)
+        super::cell_of_inv(x, self.origin[0], self.inv_cell, self.nx)
     }
 
     fn row(&self, y: f64) -> usize {
-        super::cell_of(y, self.origin[1], self.cell, self.ny)
+        super::cell_of_inv(y, self.origin[1], self.inv_cell, self.ny)
     }
 
     /// Calls `f` with every segment entered in a cell within `reach` of `q`, until it
     /// returns true; whether it did.
     fn any_near(&self, q: [f64; 2], reach: f64, mut f: impl FnMut(&Seg) -> bool) -> bool {
+        self.any_near_at(q, reach, |_, s| f(s))
+    }
+
+    /// [`Grid::any_near`], `f` given each segment's index in `segs` too.
+    fn any_near_at(&self, q: [f64; 2], reach: f64, mut f: impl FnMut(usize, &Seg) -> bool) -> bool {
         if self.segs.is_empty() || !(q[0].is_finite() && q[1].is_finite()) {
             return false;
         }
@@ -176,7 +182,7 @@ impl Grid {
                 let c = iy * self.nx + ix;
                 let (from, to) = (self.start[c] as usize, self.start[c + 1] as usize);
                 for &i in &self.items[from..to] {
-                    if f(&self.segs[i as usize]) {
+                    if f(i as usize, &self.segs[i as usize]) {
                         return true;
                     }
                 }
@@ -315,7 +321,7 @@ impl Support {
             .filter(|p| p.role == Role::ExternalPerimeter)
         {
             let he = p.width / 2.0;
-            let mut last: Option<Seg> = None;
+            let mut last: Option<usize> = None;
             for w in p.points.windows(2) {
                 for q in samples_every(w[0], w[1], FLANK_STEP) {
                     let gap = |s: &Seg| {
@@ -326,15 +332,29 @@ impl Support {
                         (d + s.half - FLANK_STEP / 2.0 > he + 0.11)
                             .then(|| d - he - s.half + FLANK_STEP / 2.0)
                     };
-                    // The perimeter beside the last sample usually serves this one too;
-                    // any gap under FLANK_OK will do (only the widest one is kept).
-                    let mut best = last.as_ref().and_then(gap).unwrap_or(f64::INFINITY);
+                    // The perimeter beside the last sample, or the next piece along it,
+                    // usually serves this one too; any gap under FLANK_OK will do (only the
+                    // widest one is kept).
+                    let mut best = f64::INFINITY;
+                    if let Some(j) = last {
+                        for k in [j, j + 1] {
+                            if let Some(g) = outline.segs.get(k).and_then(gap) {
+                                if g < best {
+                                    best = g;
+                                    last = Some(k);
+                                }
+                            }
+                            if best <= FLANK_OK {
+                                break;
+                            }
+                        }
+                    }
                     if best > FLANK_OK {
-                        outline.any_near(q, CELL, |s| {
+                        outline.any_near_at(q, CELL, |k, s| {
                             if let Some(g) = gap(s) {
                                 if g < best {
                                     best = g;
-                                    last = Some(*s);
+                                    last = Some(k);
                                 }
                             }
                             false
@@ -530,31 +550,42 @@ pub fn why_not(
         return Some(format!("below: loops {:.3} mm apart", below.approach));
     }
     // 1. The outline lies within the tolerance of the outline below.
+    let under = &below.grid.segs;
+    // The strand below that covered the last sample: a wall rising straight is covered
+    // piece by piece by the strand below it, so the next sample is tried against it and the
+    // pieces beside it along its path before the grid is asked (which strand answers never
+    // matters: a sample fails only when no strand below covers it).
+    let mut last: Option<usize> = None;
     for s in &here.grid.segs {
-        let mut last: Option<Seg> = None;
         let covers_at = |q: [f64; 2], t: &Seg| {
             let need = tol - OFFSET_SLACK - ARC_SHARE * t.half - STEP / 2.0 + t.half - s.half;
             need > 0.0 && dist2(q, t) <= need * need
         };
         for q in samples(s.a, s.b) {
             let covers = |t: &Seg| covers_at(q, t);
-            if last.as_ref().is_some_and(covers) {
-                continue;
-            }
-            let mut found = None;
-            below.grid.any_near(q, tol + below.widest_half, |t| {
-                let ok = covers(t);
-                if ok {
-                    found = Some(*t);
-                }
-                ok
+            let mut found = last.and_then(|j| {
+                [j, j + 1, j.wrapping_sub(1)]
+                    .into_iter()
+                    .find(|&k| under.get(k).is_some_and(covers))
             });
+            if found.is_none() {
+                below.grid.any_near_at(q, tol + below.widest_half, |k, t| {
+                    let ok = covers(t);
+                    if ok {
+                        found = Some(k);
+                    }
+                    ok
+                });
+            }
             match found {
                 // The distance to a segment is convex along a line: a strand below that
                 // covers this sample and the segment's end covers all between (a wall that
                 // rises straight is proven in two queries a segment, not one every STEP).
-                Some(t) if covers_at(s.b, &t) => break,
-                Some(t) => last = Some(t),
+                Some(k) if covers_at(s.b, &under[k]) => {
+                    last = Some(k);
+                    break;
+                }
+                Some(k) => last = Some(k),
                 None => {
                     return Some(format!(
                         "outline at {:.3},{:.3} off the outline below",

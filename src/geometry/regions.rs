@@ -223,7 +223,10 @@ pub fn find_regions(
         return Vec::new();
     }
     let boxes: Vec<Option<Rect<f64>>> = layer.paths.iter().map(path_box).collect();
-    kept.into_iter()
+    // Each region is described on its own (a plate's caps are 16 of them, 1.6 ms each):
+    // on all cores, in order.
+    use rayon::prelude::*;
+    kept.into_par_iter()
         .map(|polygon| describe(polygon, below, tol + ANCHOR_SLACK, layer, &boxes, opts))
         // Support material over air is the slicer's business: support lines stacked over the
         // gaps of the support below, or its first layers hanging under a part's ledge. Only
