@@ -296,12 +296,7 @@ pub(super) fn wall_joins(layer: &Layer) -> Vec<Path> {
         };
         let gap = ((end[0] - start[0]).powi(2) + (end[1] - start[1]).powi(2)).sqrt();
         if gap > 1e-6 && gap <= WALL_JOIN && gap <= SEAM_SHARE * p.length() {
-            joins.push(Path {
-                points: vec![end, start],
-                seg_line: vec![0],
-                seg_e: vec![0.0],
-                ..p.clone()
-            });
+            joins.push(join(p, end, start, p.width));
         }
     }
     for w in layer.paths.windows(2) {
@@ -314,16 +309,27 @@ pub(super) fn wall_joins(layer: &Layer) -> Vec<Path> {
         };
         let gap = ((end[0] - start[0]).powi(2) + (end[1] - start[1]).powi(2)).sqrt();
         if gap > 1e-6 && gap <= WALL_JOIN {
-            joins.push(Path {
-                points: vec![end, start],
-                seg_line: vec![0],
-                seg_e: vec![0.0],
-                width: a.width.min(b.width),
-                ..a.clone()
-            });
+            joins.push(join(a, end, start, a.width.min(b.width)));
         }
     }
     joins
+}
+
+/// A join from `from` to `to` with the attributes of `wall` (whose strands it does not
+/// copy: this runs for every loop of every layer the proof reads).
+fn join(wall: &Path, from: [f64; 2], to: [f64; 2], width: f64) -> Path {
+    Path {
+        role: wall.role,
+        width,
+        height: wall.height,
+        z: wall.z,
+        object: wall.object,
+        tool: wall.tool,
+        points: vec![from, to],
+        seg_line: vec![0],
+        seg_e: vec![0.0],
+        feed: wall.feed,
+    }
 }
 
 /// The area a layer covers for the layer above, holes that are infill gaps closed.

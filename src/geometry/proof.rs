@@ -39,8 +39,13 @@ pub const STEP: f64 = 0.1;
 const FLANK_STEP: f64 = 0.4;
 /// A flanking gap small enough not to look for a smaller one (mm).
 const FLANK_OK: f64 = 0.5;
-/// Grid cell (mm): larger than every reach queried, so a query reads at most 3 x 3 cells.
+/// Farthest reach the proof queries (mm): a layer below whose loops would need more is left
+/// to the exact path.
 const CELL: f64 = 1.0;
+/// The grid's cell (mm). Twice the reach: a query reads 1 to 4 cells, about as many
+/// strands as with cells of the reach, and a plate's grid has a quarter of the cells to
+/// clear and count (a layer of 16 stems: 22 000 cells of 1 mm).
+const GRID_CELL: f64 = 2.0;
 /// Chord error of a footprint's arcs per mm of radius: geo's buffer draws a cap or join
 /// with chords of 0.35 rad, 1 - cos(0.175) of the radius inside the circle.
 const ARC_SHARE: f64 = 0.0153;
@@ -118,7 +123,7 @@ impl Grid {
             return Grid::default();
         }
         let (w, h) = (b[2] - b[0], b[3] - b[1]);
-        let cell = CELL.max(((w + CELL) * (h + CELL) / MAX_CELLS).sqrt());
+        let cell = GRID_CELL.max(((w + GRID_CELL) * (h + GRID_CELL) / MAX_CELLS).sqrt());
         let nx = (w / cell).floor() as usize + 1;
         let ny = (h / cell).floor() as usize + 1;
         let mut grid = Grid {
@@ -133,7 +138,7 @@ impl Grid {
         // Two passes over the pieces: count per cell, then fill.
         let mut cells: Vec<(u32, u32)> = Vec::with_capacity(grid.segs.len() * 2);
         for (i, s) in grid.segs.iter().enumerate() {
-            let n = (seg_len(s) / cell).ceil().max(1.0) as usize;
+            let n = pieces(seg_len(s) / cell);
             let mut prev = (usize::MAX, usize::MAX, usize::MAX, usize::MAX);
             for k in 0..n {
                 let p0 = lerp(s.a, s.b, k as f64 / n as f64);
@@ -192,6 +197,18 @@ impl Grid {
     }
 }
 
+/// `x` rounded up, at least 1 (`as` saturates: NaN gives 1, infinity the most there is).
+/// Without SSE4.1 in the baseline target, `f64::ceil` is a call into libm, and this runs
+/// for every segment the proof reads.
+fn pieces(x: f64) -> usize {
+    let n = x as usize;
+    if (n as f64) < x {
+        n.saturating_add(1)
+    } else {
+        n.max(1)
+    }
+}
+
 fn lerp(a: [f64; 2], b: [f64; 2], t: f64) -> [f64; 2] {
     [a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t]
 }
@@ -204,7 +221,7 @@ fn samples(a: [f64; 2], b: [f64; 2]) -> impl Iterator<Item = [f64; 2]> {
 /// Points every `step` or closer along a segment, both ends included.
 fn samples_every(a: [f64; 2], b: [f64; 2], step: f64) -> impl Iterator<Item = [f64; 2]> {
     let len = ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2)).sqrt();
-    let n = (len / step).ceil().max(1.0) as usize;
+    let n = pieces(len / step);
     (0..=n).map(move |k| lerp(a, b, k as f64 / n as f64))
 }
 
@@ -666,6 +683,23 @@ mod tests {
             assert!(find_regions(&ab, &h, &ah, &opts).is_empty());
         }
         why
+    }
+
+    #[test]
+    fn pieces_round_up() {
+        for (x, n) in [
+            (0.0, 1),
+            (0.3, 1),
+            (1.0, 1),
+            (1.0000001, 2),
+            (2.5, 3),
+            (7.0, 7),
+        ] {
+            assert_eq!(pieces(x), n, "{x}");
+        }
+        assert_eq!(pieces(f64::NAN), 1);
+        assert_eq!(pieces(-3.0), 1);
+        assert_eq!(pieces(f64::INFINITY), usize::MAX);
     }
 
     #[test]
