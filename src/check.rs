@@ -76,15 +76,38 @@ fn turned_back(o: &Seg, a: [f64; 2], b: [f64; 2], p: [f64; 2], reach: f64) -> bo
 /// Segments bucketed on a dense square grid over a fixed box, for nearby queries. Segments
 /// outside the box are kept in a short list that every query scans (rare: the box covers the
 /// layer and the one below).
+///
+/// Each cell's segments are a list threaded through one array (first and last entry per
+/// cell, each entry its segment and the next entry), in the order they were entered: the
+/// grid grows as strands are printed, and a vector per cell cost an allocation for every
+/// cell a strand first entered (most of a plate's end checks) and as many frees after.
 struct Grid {
     cell: f64,
     origin: [f64; 2],
     nx: i64,
     ny: i64,
     segs: Vec<Seg>,
-    cells: Vec<Vec<u32>>,
+    /// First and last entry of each cell, [`NONE`] when empty.
+    head: Vec<u32>,
+    tail: Vec<u32>,
+    /// (segment, next entry of its cell or [`NONE`]).
+    entries: Vec<(u32, u32)>,
     outside: Vec<u32>,
     max_half: f64,
+}
+
+/// No entry.
+const NONE: u32 = u32::MAX;
+
+/// `v` rounded down, as an integer (`as` saturates; NaN gives 0). `f64::floor` is a call into
+/// libm on the baseline target, made for every corner of every segment entered and asked.
+fn floor_i64(v: f64) -> i64 {
+    let n = v as i64;
+    if (n as f64) > v {
+        n.saturating_sub(1)
+    } else {
+        n
+    }
 }
 
 /// Most cells a grid allocates; a layer spread wider gets coarser cells.
@@ -107,7 +130,9 @@ impl Grid {
             nx,
             ny,
             segs: Vec::new(),
-            cells: vec![Vec::new(); (nx * ny) as usize],
+            head: vec![NONE; (nx * ny) as usize],
+            tail: vec![NONE; (nx * ny) as usize],
+            entries: Vec::new(),
             outside: Vec::new(),
             max_half: 0.0,
         }
@@ -115,9 +140,29 @@ impl Grid {
 
     fn key(&self, x: f64, y: f64) -> (i64, i64) {
         (
-            ((x - self.origin[0]) / self.cell).floor() as i64,
-            ((y - self.origin[1]) / self.cell).floor() as i64,
+            floor_i64((x - self.origin[0]) / self.cell),
+            floor_i64((y - self.origin[1]) / self.cell),
         )
+    }
+
+    /// The segments entered in cell `c`, in the order they were entered.
+    fn cell(&self, c: usize) -> impl Iterator<Item = u32> + '_ {
+        let mut e = self.head[c];
+        std::iter::from_fn(move || {
+            let (seg, next) = *self.entries.get(e as usize)?;
+            e = next;
+            Some(seg)
+        })
+    }
+
+    fn enter(&mut self, c: usize, seg: u32) {
+        let e = self.entries.len() as u32;
+        self.entries.push((seg, NONE));
+        match self.tail[c] {
+            NONE => self.head[c] = e,
+            t => self.entries[t as usize].1 = e,
+        }
+        self.tail[c] = e;
     }
 
     fn insert(&mut self, s: Seg) {
@@ -156,7 +201,7 @@ impl Grid {
         } else {
             for y in y0..=y1 {
                 for x in x0..=x1 {
-                    self.cells[(y * self.nx + x) as usize].push(id);
+                    self.enter((y * self.nx + x) as usize, id);
                 }
             }
         }
@@ -185,10 +230,7 @@ impl Grid {
         let (x1, y1) = self.key(p[0] + r, p[1] + r);
         for y in y0.max(0)..=y1.min(self.ny - 1) {
             for x in x0.max(0)..=x1.min(self.nx - 1) {
-                let found = self.cells[(y * self.nx + x) as usize]
-                    .iter()
-                    .copied()
-                    .find(|&i| hit(i));
+                let found = self.cell((y * self.nx + x) as usize).find(|&i| hit(i));
                 if found.is_some() {
                     return found;
                 }
@@ -288,7 +330,7 @@ impl EndSupport {
         let mut best: Option<(f64, [f64; 2])> = None;
         let candidates = (y0.max(0)..=y1.min(g.ny - 1))
             .flat_map(|y| (x0.max(0)..=x1.min(g.nx - 1)).map(move |x| (y * g.nx + x) as usize))
-            .flat_map(|c| g.cells[c].iter().copied())
+            .flat_map(|c| g.cell(c))
             .chain(g.outside.iter().copied());
         for i in candidates {
             let s = &g.segs[i as usize];
@@ -814,6 +856,27 @@ fn classify(samples: &mut [(f64, Sample, bool)], opts: &CheckOptions, out: &mut 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn floor_of_an_integer_cast_is_the_floor() {
+        for v in [
+            0.0,
+            -0.0,
+            0.5,
+            -0.5,
+            1.0,
+            -1.0,
+            2.999,
+            -2.001,
+            1e15 + 0.5,
+            -1e15 - 0.5,
+        ] {
+            assert_eq!(floor_i64(v), v.floor() as i64, "{v}");
+        }
+        assert_eq!(floor_i64(f64::NAN), 0);
+        assert_eq!(floor_i64(f64::INFINITY), i64::MAX);
+        assert_eq!(floor_i64(f64::NEG_INFINITY), i64::MIN);
+    }
     use crate::layers::{filament_area, Role};
 
     /// A strand with the E of a `width` bead at 0.2 mm height on 1.75 mm filament.
