@@ -117,7 +117,7 @@ pub fn rewrite_file(
     let config = opened.config;
     let texture_config = req.texture.as_ref().map(|_| config.clone());
     // The rewrite itself, into the first temporary file.
-    let first_pass = |mut w: &mut dyn std::io::Write, dest: &Path| {
+    let first_pass = |mut w: &mut (dyn std::io::Write + Send), dest: &Path| {
         let report =
             emit::process(reader, config, &opts, &mut w).map_err(|e| stream_err(e, dest))?;
         filter_err(&report)?;

@@ -82,26 +82,48 @@ pub fn weight(layer: &Layer) -> usize {
             .sum::<usize>()
 }
 
-/// Bytes in flight between the reader and the work, capped at [`READ_AHEAD_BYTES`]: the
-/// reader waits before sending a layer that would go over, unless nothing is in flight.
-struct Budget {
+/// Bytes in flight between two threads, capped at a limit: the sender waits before sending
+/// an item that would go over, unless nothing is in flight (so one item of any size passes).
+pub(crate) struct Budget {
     used: std::sync::Mutex<usize>,
     freed: std::sync::Condvar,
+    limit: usize,
 }
 
 impl Budget {
-    fn take(&self, n: usize) {
+    pub(crate) fn new(limit: usize) -> Budget {
+        Budget {
+            used: std::sync::Mutex::new(0),
+            freed: std::sync::Condvar::new(),
+            limit,
+        }
+    }
+
+    pub(crate) fn take(&self, n: usize) {
         let mut used = self.used.lock().unwrap_or_else(|e| e.into_inner());
-        while *used > 0 && *used + n > READ_AHEAD_BYTES {
+        while *used > 0 && *used + n > self.limit {
             used = self.freed.wait(used).unwrap_or_else(|e| e.into_inner());
         }
         *used += n;
     }
 
-    fn give(&self, n: usize) {
+    pub(crate) fn give(&self, n: usize) {
         let mut used = self.used.lock().unwrap_or_else(|e| e.into_inner());
         *used = used.saturating_sub(n);
         self.freed.notify_all();
+    }
+
+    /// A guard that frees the whole budget when dropped: held by the receiving side, so that
+    /// a sender waiting for budget is released when the receiver stops (returns, fails or
+    /// panics) and finds the channel closed instead of waiting forever.
+    pub(crate) fn release_on_drop(&self) -> impl Drop + '_ {
+        struct Release<'a>(&'a Budget);
+        impl Drop for Release<'_> {
+            fn drop(&mut self) {
+                self.0.give(usize::MAX);
+            }
+        }
+        Release(self)
     }
 }
 
@@ -125,10 +147,7 @@ where
     I: Iterator<Item = io::Result<Layer>> + Send,
     W: FnOnce(&mut dyn Iterator<Item = io::Result<Layer>>) -> io::Result<T>,
 {
-    let budget = Budget {
-        used: std::sync::Mutex::new(0),
-        freed: std::sync::Condvar::new(),
-    };
+    let budget = Budget::new(READ_AHEAD_BYTES);
     let budget = &budget;
     std::thread::scope(|s| {
         let (tx, rx) = std::sync::mpsc::sync_channel::<(io::Result<Layer>, usize)>(READ_AHEAD);
@@ -145,13 +164,7 @@ where
         });
         // `rx` is dropped on return, which releases a reader blocked on a full channel; the
         // guard frees the budget so that a reader waiting on it finds the channel closed.
-        struct Release<'a>(&'a Budget);
-        impl Drop for Release<'_> {
-            fn drop(&mut self) {
-                self.0.give(usize::MAX);
-            }
-        }
-        let _release = Release(budget);
+        let _release = budget.release_on_drop();
         let mut it = rx.into_iter().map(|(l, w)| {
             budget.give(w);
             l
