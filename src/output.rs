@@ -202,10 +202,66 @@ pub fn remove_stale_temps(dest: &Path) {
 pub fn write_atomic<T>(
     dest: &Path,
     inputs: &[&Path],
-    write: impl FnOnce(&mut BufWriter<File>) -> Result<T>,
+    write: impl FnOnce(&mut BufWriter<Writeback>) -> Result<T>,
 ) -> Result<T> {
     write_atomic_twice(dest, inputs, write, |_| false, |_, _, _| Ok(()))
 }
+
+/// A file being written that asks the kernel every [`KICK_BYTES`] to start writing back what
+/// it was given, when it is the file to be synced: the disk then writes while the rest is
+/// made, and the fsync at the end waits for the last few megabytes only (a 25 MB rewrite:
+/// 12 ms of fsync after the last byte). A hint; nothing depends on it.
+pub struct Writeback {
+    file: File,
+    kick: bool,
+    written: u64,
+    kicked: u64,
+}
+
+const KICK_BYTES: u64 = 4 << 20;
+
+impl Writeback {
+    fn new(file: File, kick: bool) -> Writeback {
+        Writeback {
+            file,
+            kick,
+            written: 0,
+            kicked: 0,
+        }
+    }
+}
+
+impl Write for Writeback {
+    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+        let n = self.file.write(buf)?;
+        self.written += n as u64;
+        if self.kick && self.written - self.kicked >= KICK_BYTES {
+            start_writeback(&self.file, self.kicked, self.written - self.kicked);
+            self.kicked = self.written;
+        }
+        Ok(n)
+    }
+
+    fn flush(&mut self) -> io::Result<()> {
+        self.file.flush()
+    }
+}
+
+#[cfg(target_os = "linux")]
+fn start_writeback(file: &File, from: u64, len: u64) {
+    use std::os::fd::AsRawFd;
+    let (Ok(from), Ok(len)) = (i64::try_from(from), i64::try_from(len)) else {
+        return;
+    };
+    // SAFETY: a plain system call on a descriptor `file` keeps open; it only starts the
+    // writeback of the range's dirty pages (no wait, no effect on the content).
+    unsafe {
+        libc::sync_file_range(file.as_raw_fd(), from, len, libc::SYNC_FILE_RANGE_WRITE);
+    }
+}
+
+#[cfg(not(target_os = "linux"))]
+fn start_writeback(_: &File, _: u64, _: u64) {}
 
 /// Writes `bytes` to `dest` atomically.
 pub fn write_bytes(dest: &Path, inputs: &[&Path], bytes: &[u8]) -> Result<()> {
@@ -223,21 +279,27 @@ pub fn write_bytes(dest: &Path, inputs: &[&Path], bytes: &[u8]) -> Result<()> {
 pub fn write_atomic_twice<T>(
     dest: &Path,
     inputs: &[&Path],
-    write: impl FnOnce(&mut BufWriter<File>) -> Result<T>,
+    write: impl FnOnce(&mut BufWriter<Writeback>) -> Result<T>,
     again: impl FnOnce(&T) -> bool,
-    rewrite: impl FnOnce(&T, File, &mut BufWriter<File>) -> Result<()>,
+    rewrite: impl FnOnce(&T, File, &mut BufWriter<Writeback>) -> Result<()>,
 ) -> Result<T> {
     let werr = |source: io::Error| Error::Write {
         path: dest.to_path_buf(),
         source,
     };
-    let finish = |w: BufWriter<File>| w.into_inner().map_err(|e| werr(e.into_error()));
+    let finish = |w: BufWriter<Writeback>| {
+        w.into_inner()
+            .map(|w| w.file)
+            .map_err(|e| werr(e.into_error()))
+    };
     match target(dest, inputs)? {
         Target::Replace(real) => {
             remove_stale_temps(&real);
             let dir = dir_of(&real);
             let (first, file) = Temp::create(&dir, &real).map_err(werr)?;
-            let mut w = BufWriter::with_capacity(256 * 1024, file);
+            // Not kicked: whether it is the file kept is known only once it is written (a
+            // second pass deletes it, and its pages need never reach the disk).
+            let mut w = BufWriter::with_capacity(256 * 1024, Writeback::new(file, false));
             let value = write(&mut w)?;
             let mut file = finish(w)?;
             let mut done = first;
@@ -245,7 +307,7 @@ pub fn write_atomic_twice<T>(
                 drop(file);
                 let written = File::open(&done.path).map_err(werr)?;
                 let (second, f2) = Temp::create(&dir, &real).map_err(werr)?;
-                let mut w = BufWriter::with_capacity(256 * 1024, f2);
+                let mut w = BufWriter::with_capacity(256 * 1024, Writeback::new(f2, true));
                 rewrite(&value, written, &mut w)?;
                 file = finish(w)?;
                 // The first file goes before the rename: a kill in between leaves one file,
@@ -269,12 +331,12 @@ pub fn write_atomic_twice<T>(
             // The content is made in full before the device is opened (a failed run writes
             // nothing to it): first into a temporary file in the system's temporary folder.
             let (tmp, file) = Temp::create(&std::env::temp_dir(), &path).map_err(werr)?;
-            let mut w = BufWriter::with_capacity(256 * 1024, file);
+            let mut w = BufWriter::with_capacity(256 * 1024, Writeback::new(file, false));
             let value = write(&mut w)?;
             finish(w)?;
             let mut written = File::open(&tmp.path).map_err(werr)?;
             let device = OpenOptions::new().write(true).open(&path).map_err(werr)?;
-            let mut out = BufWriter::with_capacity(256 * 1024, device);
+            let mut out = BufWriter::with_capacity(256 * 1024, Writeback::new(device, false));
             if again(&value) {
                 rewrite(&value, written, &mut out)?;
             } else {
@@ -283,5 +345,30 @@ pub fn write_atomic_twice<T>(
             out.flush().map_err(werr)?;
             Ok(value)
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_kicked_file_holds_exactly_what_was_written() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("out.gcode");
+        let data: Vec<u8> = (0..10_000_000u32).map(|i| (i % 251) as u8).collect();
+        let mut w = BufWriter::with_capacity(
+            256 * 1024,
+            Writeback::new(File::create(&path).unwrap(), true),
+        );
+        for chunk in data.chunks(77_777) {
+            w.write_all(chunk).unwrap();
+        }
+        let wb = w.into_inner().map_err(|e| e.into_error()).unwrap();
+        // Every full 4 MB handed to the kernel was kicked; the tail waits for the fsync.
+        assert_eq!(wb.written, data.len() as u64);
+        assert!(wb.kicked >= 2 * KICK_BYTES && wb.written - wb.kicked < KICK_BYTES + 256 * 1024);
+        wb.file.sync_all().unwrap();
+        assert_eq!(fs::read(&path).unwrap(), data);
     }
 }
