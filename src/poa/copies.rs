@@ -5,7 +5,8 @@
 //! order, each as [`plan`] makes it, or a translation of the plan of an earlier region whose
 //! surroundings are the same shape moved (a plate of copies: `--duplicate`, arranged
 //! instances). Invariants: a plan is shared only when everything the planner reads near the
-//! region (the polygons of the area below and of the layer, the regions beside it) matches,
+//! region (the polygons of the area below and of the layer, whole when its windows hold them
+//! whole, else what its windows cut out of them; the regions beside it) matches,
 //! vertex for vertex, the earlier region's moved by one translation within [`MATCH_TOL`],
 //! and the regions themselves have the same box, area, reach and holes there; otherwise
 //! the region is planned on its own. Plans of representatives run on all cores.
@@ -31,6 +32,9 @@ struct Surroundings<'a> {
     keep_out: Vec<&'a Polygon<f64>>,
     /// Corner of the region's box: where the translation is read.
     corner: [f64; 2],
+    /// Where the planner's windows cut polygons (a region on the side of a big body): the
+    /// windows' contents themselves, `below` and `area` then left empty.
+    cut: Option<super::Windows>,
 }
 
 /// Representatives of one area a region is compared with.
@@ -79,6 +83,7 @@ fn surroundings<'a>(
 ) -> Option<Surroundings<'a>> {
     // The noise of the planner's own box (the region grown by a round offset).
     const EDGE: f64 = 0.05;
+    let (below_all, area_all) = (below, area);
     let b = region.polygon.bounding_rect()?;
     let md = region.max_distance;
     let outer = below_window(md + REACH_SLACK, widths) + EDGE;
@@ -87,13 +92,22 @@ fn surroundings<'a>(
     let area_outer = area_window(widths) + EDGE;
     let area = near_refs(area, &b, area_outer);
     let whole = isolated(&below, &b, inner) && isolated(&area, &b, area_window(widths) - EDGE);
-    whole.then(|| Surroundings {
+    // Otherwise what the planner cuts out of them (a box's edge cuts a copy's polygon where
+    // it cuts the other's, moved, up to the noise of the region's outline, and the
+    // comparison says whether it did).
+    let cut = if whole {
+        None
+    } else {
+        Some(super::windows(region, below_all, area_all, others, widths)?)
+    };
+    Some(Surroundings {
         region,
         others,
-        below,
-        area,
+        below: if whole { below } else { Vec::new() },
+        area: if whole { area } else { Vec::new() },
         keep_out: near_refs(&others.keep_out, &b, outer),
         corner: [b.min().x, b.min().y],
+        cut,
     })
 }
 
@@ -119,6 +133,11 @@ fn same_shapes(a: &[&Polygon<f64>], b: &[&Polygon<f64>], t: [f64; 2]) -> bool {
     a.len() == b.len() && a.iter().zip(b).all(|(p, q)| same_polygon(p, q, t))
 }
 
+/// The polygons of `m`, borrowed.
+fn refs(m: &MultiPolygon<f64>) -> Vec<&Polygon<f64>> {
+    m.0.iter().collect()
+}
+
 /// Whether two regions (derived with float noise) are the same region moved by `t`: box,
 /// area, reach and holes.
 fn same_region(a: &Region, b: &Region, t: [f64; 2]) -> bool {
@@ -142,18 +161,32 @@ fn same_region(a: &Region, b: &Region, t: [f64; 2]) -> bool {
 fn translation(a: &Surroundings<'_>, b: &Surroundings<'_>) -> Option<[f64; 2]> {
     // The first vertex of the layer's polygons near by fixes the translation exactly (the
     // region's own box carries the noise of its derivation).
-    let first = |s: &Surroundings<'_>| s.area.first().and_then(|p| p.exterior().0.first().copied());
+    let first = |s: &Surroundings<'_>| {
+        let polygons = match &s.cut {
+            Some(c) => c.area.0.first(),
+            None => s.area.first().copied(),
+        };
+        polygons.and_then(|p| p.exterior().0.first().copied())
+    };
     let t = match (first(a), first(b)) {
         (Some(p), Some(q)) => [q.x - p.x, q.y - p.y],
         (None, None) => [b.corner[0] - a.corner[0], b.corner[1] - a.corner[1]],
         _ => return None,
     };
     let plain = |o: &Others| o.absorb.0.is_empty();
+    let windows = match (&a.cut, &b.cut) {
+        (None, None) => same_shapes(&a.area, &b.area, t) && same_shapes(&a.below, &b.below, t),
+        (Some(x), Some(y)) => {
+            same_shapes(&refs(&x.area), &refs(&y.area), t)
+                && same_shapes(&refs(&x.below), &refs(&y.below), t)
+                && same_shapes(&refs(&x.hint), &refs(&y.hint), t)
+        }
+        _ => false,
+    };
     (plain(a.others)
         && plain(b.others)
         && same_region(a.region, b.region, t)
-        && same_shapes(&a.area, &b.area, t)
-        && same_shapes(&a.below, &b.below, t)
+        && windows
         && same_shapes(&a.keep_out, &b.keep_out, t))
     .then_some(t)
 }
@@ -389,5 +422,54 @@ mod tests {
         for (p, r) in got.iter().zip(&regions) {
             assert_eq!(points(p), points(&alone(&below, &area, r)));
         }
+    }
+
+    /// A ledge 8 mm deep off the side of a wall 80 mm long, at each corner given (a wall
+    /// runs far past the planner's windows, which cut it), and extra posts below.
+    fn ledges(
+        corners: &[[f64; 2]],
+        posts: &[Polygon<f64>],
+    ) -> (MultiPolygon<f64>, MultiPolygon<f64>, Vec<Region>) {
+        let (mut below, mut area, mut regions) = (Vec::new(), Vec::new(), Vec::new());
+        for &[x, y] in corners {
+            let wall = mp(vec![rect(x, y, x + 80.0, y + 6.0)]);
+            let layer = crate::geometry::union(
+                &wall,
+                &mp(vec![rect(x + 35.0, y + 6.0, x + 45.0, y + 14.0)]),
+            );
+            let r = difference(&layer, &wall);
+            regions.push(overhang(r.0[0].clone(), 8.0));
+            below.extend(wall.0);
+            area.extend(layer.0);
+        }
+        below.extend(posts.iter().cloned());
+        (mp(below), mp(area), regions)
+    }
+
+    #[test]
+    fn ledges_of_a_long_wall_share_a_plan_when_the_cut_windows_match() {
+        let t = [3.2537891, 50.4962713];
+        let (below, area, regions) = ledges(&[[0.0, 0.0], t], &[]);
+        let got = plans(&below, &area, &regions);
+        assert!(got[0].loops >= 5, "loops {}", got[0].loops);
+        assert_eq!(points(&got[0]), points(&alone(&below, &area, &regions[0])));
+        // The second is the first moved, rigidly, by the translation read off the cut
+        // windows (their cut edges carry the regions' noise: within a micrometre).
+        let (a, b) = (points(&got[0]), points(&got[1]));
+        assert_eq!(a.len(), b.len());
+        let moved = [b[0][0] - a[0][0], b[0][1] - a[0][1]];
+        assert!((moved[0] - t[0]).abs() < 1e-3 && (moved[1] - t[1]).abs() < 1e-3);
+        for (p, q) in a.iter().zip(&b) {
+            assert!((p[0] + moved[0] - q[0]).abs() < 1e-9 && (p[1] + moved[1] - q[1]).abs() < 1e-9);
+        }
+        let own = alone(&below, &area, &regions[1]);
+        assert_eq!(own.loops, got[1].loops);
+        let length = |p: &Plan| p.strands.iter().map(Strand::length).sum::<f64>();
+        assert!((length(&own) - length(&got[1])).abs() < 1e-3 * length(&own));
+        // A post below beside the second ledge, within its window only: its plan is its own.
+        let post = rect(t[0] + 30.0, t[1] + 10.0, t[0] + 32.0, t[1] + 12.0);
+        let (below, area, regions) = ledges(&[[0.0, 0.0], t], &[post]);
+        let got = plans(&below, &area, &regions);
+        assert_eq!(points(&got[1]), points(&alone(&below, &area, &regions[1])));
     }
 }

@@ -178,6 +178,65 @@ impl Default for Others {
     }
 }
 
+/// What [`plan`] reads of the layer below and of the layer near a region: a margin round the
+/// region (and the regions it absorbs), and the two areas cut to boxes round it and
+/// simplified by 2 um (the layer's before its closing). Everything the planner knows of
+/// `below` and `area` comes from these.
+pub(super) struct Windows {
+    pub hint: MultiPolygon<f64>,
+    pub below: MultiPolygon<f64>,
+    pub area: MultiPolygon<f64>,
+}
+
+pub(super) fn windows(
+    region: &Region,
+    below: &MultiPolygon<f64>,
+    area: &MultiPolygon<f64>,
+    others: &Others,
+    widths: &Widths,
+) -> Option<Windows> {
+    let w = widths.loop_width;
+    let we = widths.perimeter_width;
+    let reach = region.max_distance.min(1000.0) + widths.tolerance + 2.0 * w;
+    // Work near the region only: sectA within reach of it (every loop point's nearest sectA
+    // point lies there), sectB a little beyond it.
+    let region_mp = MultiPolygon::new(
+        std::iter::once(region.polygon.clone())
+            .chain(others.absorb.0.iter().cloned())
+            .collect(),
+    );
+    // A window round the region (a margin: the outline of a gradual overhang's thin ring
+    // carries thousands of arc points, which cost more to grow than the rest of its plan).
+    let hint = margin(&region_mp, widths.tolerance + w);
+    // Booleans with a whole plate's layer cost as much as the plate: take the parts near by.
+    // Cut to boxes round the region, not to its offsets: an offset by the region's reach
+    // (12 mm on a mushroom's cap) makes thousands of arc points for a boolean to chew, and
+    // nothing past the reach takes part (the fronts are cut to near the zone, the zone to
+    // `hint`).
+    let hint_box = geo::BoundingRect::bounding_rect(&hint)?;
+    // The planner's inputs are simplified by 2 um too, for the same reason as the zone below
+    // (four spheres on stems: 1.3 -> 0.5 s).
+    let below_loc = geo::Simplify::simplify(
+        &intersection(
+            &near(below, &hint_box, reach + w),
+            &boxed(&hint_box, reach + w),
+        ),
+        ZONE_SIMPLIFY,
+    );
+    let area_cut = geo::Simplify::simplify(
+        &intersection(
+            &near(area, &hint_box, 2.0 * we + 2.0),
+            &boxed(&hint_box, 2.0 * we + 2.0),
+        ),
+        ZONE_SIMPLIFY,
+    );
+    Some(Windows {
+        hint,
+        below: below_loc,
+        area: area_cut,
+    })
+}
+
 /// Plans the loops of `region` (with the floating regions `others` gives it). `start` is
 /// where the nozzle is when the plan begins.
 pub fn plan(
@@ -196,22 +255,12 @@ pub fn plan(
     let inset = settings.perimeter_inset.max(0.0);
     let reach = region.max_distance.min(1000.0) + widths.tolerance + 2.0 * w;
 
-    // Work near the region only: sectA within reach of it (every loop point's nearest sectA
-    // point lies there), sectB a little beyond it.
-    let region_mp = MultiPolygon::new(
-        std::iter::once(region.polygon.clone())
-            .chain(others.absorb.0.iter().cloned())
-            .collect(),
-    );
-    // A window round the region (a margin: the outline of a gradual overhang's thin ring
-    // carries thousands of arc points, which cost more to grow than the rest of its plan).
-    let hint = margin(&region_mp, widths.tolerance + w);
-    // Booleans with a whole plate's layer cost as much as the plate: take the parts near by.
-    // Cut to boxes round the region, not to its offsets: an offset by the region's reach
-    // (12 mm on a mushroom's cap) makes thousands of arc points for a boolean to chew, and
-    // nothing past the reach takes part (the fronts are cut to near the zone, the zone to
-    // `hint`).
-    let Some(hint_box) = geo::BoundingRect::bounding_rect(&hint) else {
+    let Some(Windows {
+        hint,
+        below: below_loc,
+        area: area_cut,
+    }) = windows(region, below, area, others, &widths)
+    else {
         return Plan {
             zone: MultiPolygon::new(Vec::new()),
             strands: Vec::new(),
@@ -220,28 +269,10 @@ pub fn plan(
             ladder: false,
         };
     };
-    // The planner's inputs are simplified by 2 um too, for the same reason as the zone below
-    // (four spheres on stems: 1.3 -> 0.5 s).
-    let below_loc = geo::Simplify::simplify(
-        &intersection(
-            &near(below, &hint_box, reach + w),
-            &boxed(&hint_box, reach + w),
-        ),
-        ZONE_SIMPLIFY,
-    );
     // Gaps narrower than half a bead in what the layer prints are no gaps (beads squash
     // into them): closed, so that an island of walls the slicer set 0.07 mm off the skin (a
     // slot's walls by Cura, outer wall first) is part of the outline the perimeter follows.
-    let area_loc = closing(
-        &geo::Simplify::simplify(
-            &intersection(
-                &near(area, &hint_box, 2.0 * we + 2.0),
-                &boxed(&hint_box, 2.0 * we + 2.0),
-            ),
-            ZONE_SIMPLIFY,
-        ),
-        w / 4.0,
-    );
+    let area_loc = closing(&area_cut, w / 4.0);
 
     // The zone: what sectB prints beyond sectA around this region, slivers dropped.
     // Simplified by 2 um before the opening: the booleans leave thousands of points on a
