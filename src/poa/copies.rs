@@ -251,7 +251,11 @@ pub fn plan_all(
     }
     let plan_one = |i: usize| {
         let (r, o) = regions[i];
-        plan(r, below, area, o, widths, settings, start)
+        // The windows cut for the comparison are what the planner would cut again.
+        match around[i].as_ref().and_then(|s| s.cut.as_ref()) {
+            Some(win) => super::plan_in(r, win, o, widths, settings, start),
+            None => plan(r, below, area, o, widths, settings, start),
+        }
     };
     let planned: Vec<Plan> = reps.par_iter().map(|&i| plan_one(i)).collect();
     // A representative's growth must have ended by itself, short of the bound its reach (or

@@ -248,31 +248,38 @@ pub fn plan(
     settings: &PoaSettings,
     start: [f64; 2],
 ) -> Plan {
+    match windows(region, below, area, others, &widths) {
+        Some(win) => plan_in(region, &win, others, widths, settings, start),
+        None => Plan {
+            zone: MultiPolygon::new(Vec::new()),
+            strands: Vec::new(),
+            loops: 0,
+            with_perimeter: false,
+            ladder: false,
+        },
+    }
+}
+
+/// [`plan`] from the [`windows`] made for `region` already.
+pub(super) fn plan_in(
+    region: &Region,
+    win: &Windows,
+    others: &Others,
+    widths: Widths,
+    settings: &PoaSettings,
+    start: [f64; 2],
+) -> Plan {
     let w = widths.loop_width;
     let we = widths.perimeter_width;
     let overlap = settings.overlap.clamp(0.05, 0.9);
     let step = (1.0 - overlap) * w;
     let inset = settings.perimeter_inset.max(0.0);
     let reach = region.max_distance.min(1000.0) + widths.tolerance + 2.0 * w;
-
-    let Some(Windows {
-        hint,
-        below: below_loc,
-        area: area_cut,
-    }) = windows(region, below, area, others, &widths)
-    else {
-        return Plan {
-            zone: MultiPolygon::new(Vec::new()),
-            strands: Vec::new(),
-            loops: 0,
-            with_perimeter: false,
-            ladder: false,
-        };
-    };
+    let (hint, below_loc, area_cut) = (&win.hint, &win.below, &win.area);
     // Gaps narrower than half a bead in what the layer prints are no gaps (beads squash
     // into them): closed, so that an island of walls the slicer set 0.07 mm off the skin (a
     // slot's walls by Cura, outer wall first) is part of the outline the perimeter follows.
-    let area_loc = closing(&area_cut, w / 4.0);
+    let area_loc = closing(area_cut, w / 4.0);
 
     // The zone: what sectB prints beyond sectA around this region, slivers dropped.
     // Simplified by 2 um before the opening: the booleans leave thousands of points on a
@@ -281,7 +288,7 @@ pub fn plan(
     // average.
     let mut zone = opening(
         &geo::Simplify::simplify(
-            &intersection(&difference(&area_loc, &offset(&below_loc, 0.01)), &hint),
+            &intersection(&difference(&area_loc, &offset(below_loc, 0.01)), hint),
             ZONE_SIMPLIFY,
         ),
         SLIVER,
@@ -322,7 +329,7 @@ pub fn plan(
     // convex corners rounded by half a width.
     let round = we / 2.0;
     let mut perimeter_area = offset(&offset(&area_loc, -(we / 2.0 + inset + round)), round);
-    let front = offset(&below_loc, step - w / 2.0);
+    let front = offset(below_loc, step - w / 2.0);
     if thin {
         // Where the perimeter is within an eighth of a width of biting like loop 1, it is
         // moved there: a marginal slope (60 degrees at 0.2 mm) then rests on the layer below
@@ -365,7 +372,7 @@ pub fn plan(
             let ring = if k == 1 {
                 rings(&front)
             } else {
-                rings(&offset(&below_loc, k as f64 * step - w / 2.0))
+                rings(&offset(below_loc, k as f64 * step - w / 2.0))
             };
             let mut pieces = clip_lines(&ring, &near_room, true);
             if pieces.is_empty() {
@@ -397,7 +404,7 @@ pub fn plan(
                 strands.extend(shape(w).strands(pieces, 2.0 * w, &mut at));
             } else {
                 let half_ring = rings(&offset(
-                    &below_loc,
+                    below_loc,
                     k as f64 * step - w / 2.0 - HALF_BACK * w,
                 ));
                 let half = if needed {
@@ -431,7 +438,7 @@ pub fn plan(
     // loop area that follows the wall below is left out. (Leaving out all within half a
     // width of the wall below cut the contour to pieces on a strip about as wide as that,
     // a sphere's ring next to the equator, and the perimeter hung between them.)
-    let near_below = offset(&below_loc, w / 8.0);
+    let near_below = offset(below_loc, w / 8.0);
     let contour = clip_lines(&rings(&inner), &near_below, false);
 
     // Fronts grow inside the zone only (a geodesic offset): past a hole in the region they
@@ -489,7 +496,7 @@ pub fn plan(
     let mut strands: Vec<Strand> = if strip.0.is_empty() {
         Vec::new()
     } else {
-        let ring = rings(&offset(&below_loc, step - w / 2.0 - HALF_BACK * w));
+        let ring = rings(&offset(below_loc, step - w / 2.0 - HALF_BACK * w));
         let shape = Shape {
             kind: StrandKind::Loop,
             loop_index: 1,
