@@ -236,7 +236,7 @@ fn outline(layer: &Layer) -> Outline {
     if layer
         .paths
         .iter()
-        .any(|p| p.role == Role::ExternalPerimeter)
+        .any(|p| matches!(p.role, Role::ExternalPerimeter | Role::OverhangPerimeter))
     {
         Outline::Walls
     } else if layer.paths.iter().any(|p| p.role == Role::Infill) {
@@ -748,6 +748,37 @@ mod tests {
         assert!(a > 45.0 && a < 46.7, "{a}");
         let area = printed_area(&layer(paths), &AreaOptions::default());
         assert!((area.unsigned_area() - a).abs() < 1e-6);
+    }
+
+    #[test]
+    fn overhang_perimeters_outline_a_layer_with_no_external_perimeter() {
+        // A floating plate's first layer as PrusaSlicer writes it: every wall an overhang
+        // perimeter (a 20 x 20 outline and a 4 x 4 hole), bridge infill between them. The
+        // walls outline it (no strand-by-strand buffering of the infill) and the hole stays a
+        // hole.
+        let mut paths = vec![
+            square_loop(Role::OverhangPerimeter, 0.225, 0.225, 19.775, 19.775),
+            square_loop(Role::OverhangPerimeter, 7.775, 7.775, 12.225, 12.225),
+        ];
+        for i in 0..43 {
+            let y = 0.675 + 0.45 * i as f64;
+            if y > 7.5 && y < 12.5 {
+                paths.push(path(Role::BridgeInfill, 0.45, &[[0.45, y], [7.55, y]]));
+                paths.push(path(Role::BridgeInfill, 0.45, &[[12.45, y], [19.55, y]]));
+            } else {
+                paths.push(path(Role::BridgeInfill, 0.45, &[[0.45, y], [19.55, y]]));
+            }
+        }
+        let l = layer(paths);
+        assert_eq!(outline(&l), Outline::Walls);
+        let area = printed_area(&l, &AreaOptions::default());
+        assert!(
+            (area.unsigned_area() - 384.0).abs() < 0.5,
+            "{}",
+            area.unsigned_area()
+        );
+        assert_eq!(area.0.len(), 1);
+        assert_eq!(area.0[0].interiors().len(), 1);
     }
 
     #[test]
