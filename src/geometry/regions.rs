@@ -252,16 +252,22 @@ pub fn find_regions_as_sliced(
     opts: &DetectOptions,
 ) -> Vec<Region> {
     let mut regions = find_regions(below, layer, here, opts);
-    regions.retain(|r| !infill_in_a_hole(r, below));
+    regions.retain(|r| !infill_in_a_hole(r, below, layer));
     regions
 }
 
 /// Whether sparse infill is all that prints a region lying in a hole of `below` (or nothing
 /// does: the hole the printed area closed round a short stroke of infill along the wall).
-fn infill_in_a_hole(r: &Region, below: &MultiPolygon<f64>) -> bool {
+/// A region no strand's centre line enters may still lie under a wall's bead: the thin ring
+/// of a gradual overhang round a cavity (a dome shell's inner wall stepping in 0.3-0.45 mm a
+/// layer) is the outer half of the wall's bead past the layer below's, and is kept.
+fn infill_in_a_hole(r: &Region, below: &MultiPolygon<f64>, layer: &Layer) -> bool {
     use geo::InteriorPoint;
     let infill = Role::Infill.name();
     if r.extrusions.iter().any(|e| e.role != infill) {
+        return false;
+    }
+    if r.extrusions.is_empty() && under_a_bead(&r.polygon, layer) {
         return false;
     }
     let Some(at) = r.polygon.interior_point() else {
@@ -272,6 +278,37 @@ fn infill_in_a_hole(r: &Region, below: &MultiPolygon<f64>) -> bool {
             .iter()
             .any(|h| Polygon::new(h.clone(), Vec::new()).contains(&at))
     })
+}
+
+/// Whether a strand other than sparse infill lays its bead over part of `polygon`: its centre
+/// line passes within less than half its width of it (by a micrometre: a bead's edge along
+/// the region's edge does not count).
+fn under_a_bead(polygon: &Polygon<f64>, layer: &Layer) -> bool {
+    use geo::{Distance, Euclidean};
+    let Some(bb) = polygon.bounding_rect() else {
+        return false;
+    };
+    layer
+        .paths
+        .iter()
+        .filter(|p| p.role.is_part() && p.role != Role::Infill && p.points.len() >= 2)
+        .any(|p| {
+            let reach = p.width / 2.0 - 1e-3;
+            let grown = Rect::new(
+                coord! {x: bb.min().x - reach, y: bb.min().y - reach},
+                coord! {x: bb.max().x + reach, y: bb.max().y + reach},
+            );
+            if !path_box(p).is_some_and(|pb| boxes_meet(&pb, &grown)) {
+                return false;
+            }
+            p.points.windows(2).any(|w| {
+                let seg = Line::new(
+                    coord! {x: w[0][0], y: w[0][1]},
+                    coord! {x: w[1][0], y: w[1][1]},
+                );
+                Euclidean.distance(&seg, polygon) < reach
+            })
+        })
 }
 
 /// Whether support material is all that prints a region: all the strands inside it, or,
@@ -833,6 +870,51 @@ mod tests {
             "{}",
             r[0].area
         );
+    }
+
+    #[test]
+    fn a_cavity_closing_in_by_less_than_a_bead_is_held_where_its_wall_hangs() {
+        // A dome shell's inside: the layer below walls a round cavity of radius 10; this
+        // layer's inner wall steps in 0.35 mm (63 degrees at 0.2 mm layers). The strip past
+        // the tolerance lies in the hole below and no strand's centre line enters it: it is
+        // the outer half of the inner wall's bead.
+        let ring = |hole: f64| Polygon::new(circle(0.0, 0.0, 20.0), vec![circle(0.0, 0.0, hole)]);
+        let (below, here) = (mp(vec![ring(10.0)]), mp(vec![ring(9.65)]));
+        let centre = 9.65 + 0.225;
+        let wall: Vec<[f64; 2]> = (0..=180)
+            .map(|i| {
+                let a = std::f64::consts::TAU * (i % 180) as f64 / 180.0;
+                [centre * a.cos(), centre * a.sin()]
+            })
+            .collect();
+        let walled = crate::layers::testing::layer(
+            5,
+            vec![crate::layers::testing::path(
+                Role::ExternalPerimeter,
+                0.45,
+                &wall,
+            )],
+        );
+        let opts = DetectOptions::default();
+        let r = find_regions_as_sliced(&below, &walled, &here, &opts);
+        assert_eq!(r.len(), 1, "{r:?}");
+        assert_eq!(r[0].kind, RegionKind::Overhang);
+        let expected = std::f64::consts::PI * (9.775f64.powi(2) - 9.65f64.powi(2));
+        assert!(
+            (r[0].area - expected).abs() < 0.1 * expected,
+            "{}",
+            r[0].area
+        );
+        // The same hole closed in the printed area with nothing printed there is the
+        // part's inside, as before.
+        let bare = crate::layers::testing::layer(5, Vec::new());
+        assert!(find_regions_as_sliced(&below, &bare, &here, &opts).is_empty());
+        // Sparse infill alongside is no wall.
+        let infill = crate::layers::testing::layer(
+            5,
+            vec![crate::layers::testing::path(Role::Infill, 0.45, &wall)],
+        );
+        assert!(find_regions_as_sliced(&below, &infill, &here, &opts).is_empty());
     }
 
     #[test]
