@@ -1153,7 +1153,9 @@ fn emit_block(
             time += len / motion.loop_speed.0;
         } else if i > 0 {
             let d = dist(w.position(), s.points[0]);
-            let short = d <= t.short_travel.max(2.0 * s.width);
+            // Inside a gradual overhang's block too: its strands lie along the wall, over
+            // the part, and a retraction and lift each way cost more than the strand.
+            let short = d <= hop.max(2.0 * s.width);
             let hop = w.travel(t, s.points[0], !short);
             travel += hop;
             stats.inner_travel_mm += hop;
@@ -1177,6 +1179,12 @@ fn emit_block(
         }
         let speed = match s.kind {
             StrandKind::Perimeter => motion.perimeter_speed,
+            // A gradual overhang's first ring lies mostly on the wall below, under the
+            // slicer's perimeter, and leans on no loop of poa's: it goes at loop speed (the
+            // cooling minimum doubled the time of a tilted ring's 60 short rings).
+            StrandKind::Loop if rewrite.plan.with_perimeter && s.loop_index <= 1 => {
+                motion.loop_speed
+            }
             StrandKind::Loop => slowed_for_cooling(
                 motion.loop_speed,
                 loop_lengths.get(&s.loop_index).copied().unwrap_or(0.0),
