@@ -717,6 +717,15 @@ fn check_within(
     let mut volume = 0.0;
     for path in layer.paths.iter().filter(|p| judged(p)) {
         let infill = path.role == Role::Infill;
+        // A path is sampled every `step` up to [`MAX_PATH_SAMPLES`] samples, more coarsely
+        // beyond: its samples are held until its runs are classified, and a path kilometres
+        // long (moves gone relative by a stray G91) took gigabytes.
+        let length: f64 = path
+            .points
+            .windows(2)
+            .map(|w| (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]))
+            .sum();
+        let step = opts.step.max(length / MAX_PATH_SAMPLES);
         let mut last_deep = None;
         // (distance along the path, sample, supported?)
         let mut samples: Vec<(f64, Sample, bool)> = Vec::new();
@@ -734,7 +743,7 @@ fn check_within(
                 continue;
             }
             let reach = (0.5 - opts.overlap_min) * w;
-            let n = ((len / opts.step).ceil() as usize).max(1);
+            let n = ((len / step).ceil() as usize).max(1);
             for k in 0..n {
                 let t = (k as f64 + 0.5) / n as f64;
                 let p = [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])];
@@ -783,27 +792,41 @@ fn check_within(
             result.samples.extend(samples.into_iter().map(|s| s.1));
         }
     }
-    let area = footprint(
-        layer
-            .paths
-            .iter()
-            .map(|p| {
-                // The footprint of what E makes, not of what a comment says; widths rounded
-                // to 5 um so that strands share one buffer call per width (a 1 % error
-                // bound on density at 0.45 mm, far below what it is read for).
-                let mut q = p.clone();
-                q.width = (p.e_width(filament_area) * 200.0).round() / 200.0;
-                q
-            })
-            .collect::<Vec<_>>()
-            .iter(),
-    )
-    .unsigned_area();
+    // The density's footprint buffers every vertex of the layer: past [`MAX_DENSITY_POINTS`]
+    // (a layer of a million tiny moves took 330 MB and 5 s) it is not reported (0).
+    let points: usize = layer.paths.iter().map(|p| p.points.len()).sum();
+    let area = if points > MAX_DENSITY_POINTS {
+        0.0
+    } else {
+        footprint(
+            layer
+                .paths
+                .iter()
+                .map(|p| {
+                    // The footprint of what E makes, not of what a comment says; widths rounded
+                    // to 5 um so that strands share one buffer call per width (a 1 % error
+                    // bound on density at 0.45 mm, far below what it is read for).
+                    let mut q = p.clone();
+                    q.width = (p.e_width(filament_area) * 200.0).round() / 200.0;
+                    q
+                })
+                .collect::<Vec<_>>()
+                .iter(),
+        )
+        .unsigned_area()
+    };
     if area > 0.0 && layer.height > 0.0 {
         result.density = volume / area / layer.height;
     }
     result
 }
+
+/// Most vertices of a layer whose density is measured.
+const MAX_DENSITY_POINTS: usize = 500_000;
+
+/// Most samples held for one path (~110 MB): 200 m of path at the 0.1 mm step, a whole
+/// 300 x 300 mm solid layer printed as one path.
+const MAX_PATH_SAMPLES: f64 = 2_000_000.0;
 
 /// Turns per-sample supported flags into supported / bridged / in-air runs.
 fn classify(samples: &mut [(f64, Sample, bool)], opts: &CheckOptions, out: &mut LayerCheck) {
@@ -1129,6 +1152,27 @@ mod tests {
         let c = check_layer(&[&below], &cantilever, fa, &CheckOptions::default(), false);
         assert!((c.in_air_mm - 40.0).abs() < 1.0, "{c:?}");
         assert!((c.longest_in_air_mm - 40.0).abs() < 1.0);
+    }
+
+    #[test]
+    fn a_path_kilometres_long_is_sampled_within_a_bound() {
+        // Moves gone relative by a stray G91 drew strands kilometres long: sampled every
+        // 0.1 mm, one layer held gigabytes of samples.
+        let fa = filament_area(1.75);
+        let below = layer(1, vec![strand(vec![[0.0, 0.0], [5.0, 0.0]], 0.45)]);
+        let far = layer(2, vec![strand(vec![[0.0, 0.0], [0.0, 900_000.0]], 0.45)]);
+        let c = check_layer(&[&below], &far, fa, &CheckOptions::default(), true);
+        assert!(
+            c.samples.len() <= MAX_PATH_SAMPLES as usize + 1,
+            "{}",
+            c.samples.len()
+        );
+        // Still measured: all of it but the first bead's length lies in air.
+        assert!((c.in_air_mm - 900_000.0).abs() < 10.0, "{c:?}");
+        // A path of ordinary length keeps the 0.1 mm step.
+        let near = layer(2, vec![strand(vec![[0.0, 0.0], [20.0, 0.0]], 0.45)]);
+        let c = check_layer(&[&below], &near, fa, &CheckOptions::default(), true);
+        assert_eq!(c.samples.len(), 200);
     }
 
     #[test]

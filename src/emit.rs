@@ -46,9 +46,11 @@ pub struct Motion {
 
 impl Motion {
     pub fn from_config(config: &SlicerConfig, settings: &PoaSettings) -> Motion {
+        // A speed of 0 in the file (which the ranges let through as the slicer's "auto")
+        // says nothing: the default, not 1 mm/s loops.
         let loop_speed = settings
             .loop_speed
-            .or_else(|| config.number("bridge_speed").filter(|v| *v >= 0.0))
+            .or_else(|| config.number("bridge_speed").filter(|v| *v > 0.0))
             .unwrap_or(25.0)
             .max(1.0);
         Motion {
@@ -2771,6 +2773,23 @@ mod tests {
         assert!(run(&bare, Some(&above)).is_empty());
         // The layer above unknown: no cut.
         assert!(run(&bare, None).is_empty());
+    }
+
+    #[test]
+    fn speeds_of_zero_in_the_file_fall_back_to_the_defaults() {
+        // 0 passes the ranges as the slicer's "auto": loops at 1 mm/s added 2877 s to a
+        // print instead of 42.
+        let config =
+            SlicerConfig::parse(b"; bridge_speed = 0\n; travel_speed = 0\n; retract_speed = -0\n");
+        let m = Motion::from_config(&config, &PoaSettings::default());
+        assert_eq!(m.loop_speed, MmPerS(25.0));
+        assert_eq!(m.perimeter_speed, MmPerS(25.0));
+        assert_eq!(m.travel.travel_speed, MmPerS(150.0));
+        assert_eq!(m.travel.retract_speed, MmPerS(35.0));
+        let config = SlicerConfig::parse(b"; bridge_speed = 40\n; travel_speed = 180\n");
+        let m = Motion::from_config(&config, &PoaSettings::default());
+        assert_eq!(m.loop_speed, MmPerS(40.0));
+        assert_eq!(m.travel.travel_speed, MmPerS(180.0));
     }
 
     #[test]

@@ -178,7 +178,9 @@ pub struct TravelStyle {
 impl TravelStyle {
     pub fn from_config(config: &SlicerConfig) -> TravelStyle {
         let num = |k: &str, d: f64| config.number(k).filter(|v| *v >= 0.0).unwrap_or(d);
-        let retract_speed = num("retract_speed", 35.0).max(1.0);
+        // Speeds of 0 (let through as the slicer's "auto") say nothing: the default.
+        let speed = |k: &str, d: f64| config.number(k).filter(|v| *v > 0.0).unwrap_or(d);
+        let retract_speed = speed("retract_speed", 35.0).max(1.0);
         let deretract = num("deretract_speed", 0.0);
         TravelStyle {
             retract_length: config.retract_length(),
@@ -189,7 +191,7 @@ impl TravelStyle {
                 retract_speed
             }),
             lift: num("retract_lift", 0.0).min(5.0),
-            travel_speed: MmPerS(num("travel_speed", 150.0).max(1.0)),
+            travel_speed: MmPerS(speed("travel_speed", 150.0).max(1.0)),
             travel_speed_z: MmPerS(num("travel_speed_z", 0.0).max(0.0)),
             short_travel: num("retract_before_travel", 2.0).max(0.0),
             firmware_retraction: config.bool("use_firmware_retraction") == Some(true),

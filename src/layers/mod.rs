@@ -385,6 +385,9 @@ struct State {
     /// extrusion.
     z_change: Option<(usize, u64, Option<Box<Machine>>)>,
     held: Vec<Layer>,
+    /// Moves of the layer being read, and the line where one past [`MAX_LAYER_MOVES`] came.
+    layer_moves: usize,
+    too_many_moves: Option<u64>,
     ready: VecDeque<Layer>,
     next_index: usize,
     prev_layer_z: f64,
@@ -500,9 +503,22 @@ impl<R: BufRead> LayerReader<R> {
         self.partial.extend_from_slice(&buf[used..]);
         let n = buf.len();
         self.input.consume(n);
+        if let Some(line) = self.st.too_many_moves {
+            return Err(io::Error::new(
+                io::ErrorKind::InvalidData,
+                format!(
+                    "line {line}: one layer holds more than {MAX_LAYER_MOVES} moves, which no slicer writes; the file is damaged or not a print"
+                ),
+            ));
+        }
         Ok(true)
     }
 }
+
+/// Most moves (arcs counted by the chords they are read as) one layer may hold: some 400
+/// times a busy layer of a real plate (a 16-part plate averages 4 500), and what keeps a
+/// layer's model and its deposition check within a few hundred megabytes.
+const MAX_LAYER_MOVES: usize = 4_000_000;
 
 impl State {
     fn new(options: ReaderOptions) -> Self {
@@ -568,6 +584,8 @@ impl State {
             open_path: None,
             z_change: None,
             held: Vec::new(),
+            layer_moves: 0,
+            too_many_moves: None,
             ready: VecDeque::new(),
             next_index: 0,
             prev_layer_z: 0.0,
@@ -990,9 +1008,17 @@ impl State {
             path.points.push([m.to[0], m.to[1]]);
             path.seg_line.push(line);
             path.seg_e.push(m.e);
+            self.layer_moves += 1;
+            if self.layer_moves > MAX_LAYER_MOVES && self.too_many_moves.is_none() {
+                self.too_many_moves = Some(line);
+            }
             return;
         }
         let pts = m.points(ARC_TOLERANCE);
+        self.layer_moves += pts.len();
+        if self.layer_moves > MAX_LAYER_MOVES && self.too_many_moves.is_none() {
+            self.too_many_moves = Some(line);
+        }
         let total_len = m.xy_length();
         let mut prev = pts[0];
         for p in &pts[1..] {
@@ -1018,6 +1044,7 @@ impl State {
     /// Ends the current block and starts a new, empty one at `next_first_line`.
     fn finish_current(&mut self, next_first_line: u64) {
         self.close_path();
+        self.layer_moves = 0;
         let kind = self.cur.kind;
         let mut next = self.new_builder(kind, next_first_line);
         // Consecutive layers are alike in size: one allocation instead of a doubling series

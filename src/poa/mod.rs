@@ -157,6 +157,27 @@ const UNDER_AT: f64 = 0.05;
 /// full one: at a full step its narrower bead would only just touch the loop before.
 const HALF_BACK: f64 = 0.05;
 
+/// Most loop vertices one region's plan may hold (~32 MB): a region kilometres across (a
+/// file whose moves went relative by a stray G91) would otherwise grow hundreds of
+/// thousands of fronts and exhaust memory. No region of a real print comes near: a 200 mm
+/// disc at 0.27 mm steps is some 370 loops of a few thousand points.
+const PLAN_POINTS: usize = 2_000_000;
+
+/// No plan: nothing of the region is rewritten.
+fn no_plan(zone: MultiPolygon<f64>) -> Plan {
+    Plan {
+        zone,
+        strands: Vec::new(),
+        loops: 0,
+        with_perimeter: false,
+        ladder: false,
+    }
+}
+
+fn points_of(pieces: &[Polyline]) -> usize {
+    pieces.iter().map(Vec::len).sum()
+}
+
 /// The layer's other regions, as they bear on one region's plan.
 #[derive(Debug, Clone)]
 pub struct Others {
@@ -250,13 +271,7 @@ pub fn plan(
 ) -> Plan {
     match windows(region, below, area, others, &widths) {
         Some(win) => plan_in(region, &win, others, widths, settings, start),
-        None => Plan {
-            zone: MultiPolygon::new(Vec::new()),
-            strands: Vec::new(),
-            loops: 0,
-            with_perimeter: false,
-            ladder: false,
-        },
+        None => no_plan(MultiPolygon::new(Vec::new())),
     }
 }
 
@@ -297,13 +312,7 @@ pub(super) fn plan_in(
         zone = difference(&zone, &offset(&others.keep_out, 0.01));
     }
     if zone.unsigned_area() <= 0.0 {
-        return Plan {
-            zone,
-            strands: Vec::new(),
-            loops: 0,
-            with_perimeter: false,
-            ladder: false,
-        };
+        return no_plan(zone);
     }
 
     // Loops stay inside the contour; contour and perimeter overlap like loops do.
@@ -394,6 +403,14 @@ pub(super) fn plan_in(
                 width,
             };
             let before = strands.len();
+            if strands
+                .iter()
+                .map(|s: &Strand| s.points.len())
+                .sum::<usize>()
+                > PLAN_POINTS
+            {
+                return no_plan(MultiPolygon::new(Vec::new()));
+            }
             // Full width where most of the ring lies well inside the perimeter, half width
             // (a little nearer the loop before it, [`HALF_BACK`]) where most lies close
             // under it: decided for the whole ring, since a faceted wall puts a ring near
@@ -452,6 +469,7 @@ pub(super) fn plan_in(
     // Ring parts on the cut are not fronts: clip to just inside the loop area.
     let strictly_inner = offset(&inner, -0.01);
     let mut loops: Vec<Vec<Polyline>> = Vec::new();
+    let mut held = 0;
     let mut front = first;
     // The region's reach is measured to the nearest material below, which may be another
     // object's across a gap that no front crosses (the fronts grow from what the zone
@@ -471,6 +489,10 @@ pub(super) fn plan_in(
         // one of a cylinder's two identical wings got no loop at all).
         if pieces.is_empty() && loops.iter().any(|l| !l.is_empty()) {
             break;
+        }
+        held += points_of(&pieces);
+        if held > PLAN_POINTS {
+            return no_plan(MultiPolygon::new(Vec::new()));
         }
         loops.push(pieces);
         let next = grow_within(&front, step, &allowed);
@@ -560,6 +582,7 @@ fn ladder(
     let mut at = start;
     let mut strands = Vec::new();
     let mut loops = 0;
+    let mut held = 0;
     let mut front = first;
     for k in 1..=(extent.min(2000.0) / step).ceil() as usize + 2 {
         let pieces = clip_lines(&rings(&front), &inside, true);
@@ -572,6 +595,10 @@ fn ladder(
             width: w,
         };
         let before = strands.len();
+        held += points_of(&pieces);
+        if held > PLAN_POINTS {
+            return None;
+        }
         strands.extend(shape.strands(pieces, w / 4.0, &mut at));
         if strands.len() > before {
             loops = k;
