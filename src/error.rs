@@ -12,7 +12,7 @@ pub enum Error {
     },
     #[error("{path} is not G-code: {reason}")]
     NotGcode { path: PathBuf, reason: String },
-    #[error("cannot write {path}: {source}")]
+    #[error("cannot write {path}: {source}{}", write_hint(source))]
     Write {
         path: PathBuf,
         source: std::io::Error,
@@ -32,3 +32,15 @@ pub enum Error {
 }
 
 pub type Result<T> = std::result::Result<T, Error>;
+
+/// What to do about a failed write, by its cause.
+fn write_hint(e: &std::io::Error) -> &'static str {
+    use std::io::ErrorKind as K;
+    match e.kind() {
+        K::NotFound => "; the folder does not exist: create it or write elsewhere",
+        K::PermissionDenied => "; write to a folder you may write to",
+        K::ReadOnlyFilesystem => "; the disk is read-only: write elsewhere",
+        K::StorageFull | K::QuotaExceeded => "; the disk is full: free space and run again",
+        _ => "",
+    }
+}

@@ -333,6 +333,13 @@ fn check_has_commands(
     head: &[u8],
     size: u64,
 ) -> std::result::Result<(), CommandScan> {
+    // Lines ended by CR alone (classic Mac OS) read as one line: say so, rather than that
+    // the file holds no command. (Two lines' worth of CR with no LF at all.)
+    if memchr::memchr(b'\n', head).is_none() && memchr::memchr_iter(b'\r', head).nth(1).is_some() {
+        return Err(CommandScan::None(
+            "its lines end in CR alone (classic Mac OS), which poa does not read; convert them to LF (e.g. tr '\\r' '\\n' < IN > OUT)".into(),
+        ));
+    }
     let start = head.trim_ascii_start();
     let lower: Vec<u8> = start.iter().take(512).map(u8::to_ascii_lowercase).collect();
     if lower.starts_with(b"solid") && memchr::memmem::find(&lower, b"facet").is_some() {

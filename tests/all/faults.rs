@@ -110,6 +110,10 @@ G1 X0 Y0\nG1 X10 Y0 E0.5\nG1 X10 Y10 E0.5\n";
     assert!(!survive("bgcode", b"GCDE\x01\x00\x00\x00\x01\x00\x00\x00")
         .status
         .success());
+    // Lines ended by CR alone: refused, saying why (it read as one line with no command).
+    let o = survive("cr only", rect.replace('\n', "\r").as_bytes());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("CR alone"), "{err}");
 }
 
 #[test]

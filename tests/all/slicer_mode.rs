@@ -159,6 +159,12 @@ fn a_failed_write_leaves_the_original_and_no_temp_file() {
     ]);
     assert!(!o.status.success());
     assert!(stderr(&o).contains("cannot write"), "{}", stderr(&o));
+    // ... and says what to do.
+    assert!(
+        stderr(&o).contains("the folder does not exist: create it or write elsewhere"),
+        "{}",
+        stderr(&o)
+    );
     assert_eq!(std::fs::read(&f).unwrap(), before);
 }
 
@@ -263,6 +269,12 @@ fn a_folder_of_files_with_one_bad_file() {
         "{table}"
     );
     assert!(table.contains("binary data"), "{table}");
+    // stderr says the run failed, in one line, not only the table.
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.starts_with("poa: 1 of 3 files failed") && err.trim().lines().count() == 1,
+        "{err}"
+    );
     for name in ["rect_overhang_prusa_rel.gcode", "rect_overhang_cura.gcode"] {
         assert_eq!(
             count(&std::fs::read(out.join(name)).unwrap(), ";POA_BEGIN"),

@@ -349,6 +349,16 @@ pub fn process(
         let text = serde_json::to_string_pretty(&serde_json::json!({ "files": reports }))?;
         write_file(&p, &inputs, &text)?;
     }
+    if failed > 0 && files.len() > 1 {
+        // The table on stdout says which; stderr says that the run failed and what to do.
+        eprintln!(
+            "poa: {failed} of {} files failed (marked in the table above); the others were written to {}",
+            files.len(),
+            out_dir
+                .as_ref()
+                .map_or_else(|| "nowhere (dry run)".to_string(), |d| d.display().to_string())
+        );
+    }
     Ok(if failed > 0 {
         ExitCode::from(1)
     } else {
