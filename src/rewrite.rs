@@ -376,6 +376,19 @@ pub fn convert_file(input: &Path, out: &Path, libbgcode: bool) -> Result<()> {
             })?
             .to_ascii()
     } else {
+        // The reader's line limit holds here too: a binary file made of a longer line is
+        // one poa (and the printer) refuses to read back.
+        let ends = memchr::memchr_iter(b'\n', &data).chain(std::iter::once(data.len()));
+        let mut start = 0;
+        for (n, end) in ends.enumerate() {
+            if end - start > crate::gcode::MAX_LINE {
+                return Err(Error::Read {
+                    path: input.to_path_buf(),
+                    source: crate::gcode::line_too_long(n as u64 + 1),
+                });
+            }
+            start = end + 1;
+        }
         let mut config = bgcode::BinarizeConfig::prusaslicer();
         if libbgcode {
             config.print_metadata = bgcode::Compression::None;

@@ -317,3 +317,26 @@ fn convert_refuses_text_without_prusaslicer_metadata() {
     assert!(String::from_utf8_lossy(&o.stderr).contains("PrusaSlicer"));
     assert!(!out.exists());
 }
+
+/// A line longer than the reader takes (1 MiB) is refused by `convert` as by every other
+/// command: the binary file it made was one poa then refused to read back.
+#[test]
+fn convert_refuses_a_line_longer_than_the_reader_takes() {
+    let dir = tempfile::tempdir().unwrap();
+    let sample = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("sample-gcode/rect_overhang_prusa_rel.gcode");
+    let text = std::fs::read_to_string(sample).unwrap();
+    let f = dir.path().join("long.gcode");
+    std::fs::write(&f, format!("{text}; {}\n", "x".repeat(2 << 20))).unwrap();
+    let out = dir.path().join("out.bgcode");
+    let o = Command::new(env!("CARGO_BIN_EXE_poa"))
+        .arg("convert")
+        .arg(&f)
+        .arg(&out)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("longer than 1 MiB"), "{err}");
+    assert!(!out.exists());
+}
