@@ -123,6 +123,58 @@ fn random_suffix() -> u64 {
     std::collections::hash_map::RandomState::new().hash_one((n, now, std::process::id()))
 }
 
+/// The temporary files this process has open, for [`remove_temps_on_signals`].
+static LIVE_TEMPS: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+
+fn forget_temp(path: &Path) {
+    if let Ok(mut v) = LIVE_TEMPS.lock() {
+        v.retain(|p| p != path);
+    }
+}
+
+/// Removes this process's temporary files when it is interrupted (SIGINT from Ctrl-C,
+/// SIGTERM, SIGHUP), then lets the signal end it as it would have: a slicer or a user that
+/// stops a run leaves no `.NAME.poa-tmp-*` beside their file. (SIGKILL cannot be caught: the
+/// next run removes what a killed one left.) Call first in `main`, before any thread starts:
+/// the signals are blocked in every thread but one that waits for them.
+pub fn remove_temps_on_signals() {
+    #[cfg(unix)]
+    // SAFETY: plain libc signal-mask calls on a zeroed, initialised sigset_t; the waiting
+    // thread runs ordinary code (not a signal handler), so it may lock and unlink.
+    unsafe {
+        let mut set: libc::sigset_t = std::mem::zeroed();
+        libc::sigemptyset(&mut set);
+        for s in [libc::SIGINT, libc::SIGTERM, libc::SIGHUP] {
+            libc::sigaddset(&mut set, s);
+        }
+        if libc::pthread_sigmask(libc::SIG_BLOCK, &set, std::ptr::null_mut()) != 0 {
+            return;
+        }
+        let spawned = std::thread::Builder::new()
+            .name("poa-signals".into())
+            .spawn(move || {
+                let mut sig: libc::c_int = 0;
+                if libc::sigwait(&set, &mut sig) != 0 {
+                    return;
+                }
+                if let Ok(v) = LIVE_TEMPS.lock() {
+                    for p in v.iter() {
+                        let _ = fs::remove_file(p);
+                    }
+                }
+                libc::signal(sig, libc::SIG_DFL);
+                let mut one: libc::sigset_t = std::mem::zeroed();
+                libc::sigemptyset(&mut one);
+                libc::sigaddset(&mut one, sig);
+                libc::pthread_sigmask(libc::SIG_UNBLOCK, &one, std::ptr::null_mut());
+                libc::raise(sig);
+            });
+        if spawned.is_err() {
+            libc::pthread_sigmask(libc::SIG_UNBLOCK, &set, std::ptr::null_mut());
+        }
+    }
+}
+
 /// A temporary file this run owns: removed on drop unless it was renamed into place.
 struct Temp {
     path: PathBuf,
@@ -141,7 +193,12 @@ impl Temp {
                 random_suffix()
             ));
             match OpenOptions::new().write(true).create_new(true).open(&path) {
-                Ok(f) => return Ok((Temp { path, live: true }, f)),
+                Ok(f) => {
+                    if let Ok(mut v) = LIVE_TEMPS.lock() {
+                        v.push(path.clone());
+                    }
+                    return Ok((Temp { path, live: true }, f));
+                }
                 Err(e) if e.kind() == io::ErrorKind::AlreadyExists => last = Some(e),
                 Err(e) => return Err(e),
             }
@@ -151,6 +208,7 @@ impl Temp {
 
     fn keep(mut self) {
         self.live = false;
+        forget_temp(&self.path);
     }
 }
 
@@ -158,6 +216,7 @@ impl Drop for Temp {
     fn drop(&mut self) {
         if self.live {
             let _ = fs::remove_file(&self.path);
+            forget_temp(&self.path);
         }
     }
 }

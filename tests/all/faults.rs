@@ -232,3 +232,52 @@ fn a_layer_of_millions_of_moves_is_refused() {
     }
     assert!(std::fs::read(&f).unwrap() == before);
 }
+
+/// A run stopped by SIGTERM, SIGINT or SIGHUP (a slicer cancelling its post-processing, a
+/// user's Ctrl-C) removes its temporary file before it ends, and ends by that signal; the
+/// user's file is as it was. (It left `.NAME.poa-tmp-PID-*` for the next run to clean.)
+#[cfg(unix)]
+#[test]
+fn an_interrupted_run_removes_its_temporary_file() {
+    use std::os::unix::process::ExitStatusExt;
+    let text = String::from_utf8(read(&sample("circ_overhang_prusa_rel.gcode"))).unwrap();
+    let lines: Vec<&str> = text.split('\n').collect();
+    // Inches from a third of the way in: a slow file (seconds), so the run is still
+    // writing when the signal comes.
+    let at = lines.len() / 3;
+    let slow = [&lines[..at], &["G20"], &lines[at..]].concat().join("\n");
+    for sig in [libc::SIGTERM, libc::SIGINT, libc::SIGHUP] {
+        let dir = tempfile::tempdir().unwrap();
+        let f = dir.path().join("in.gcode");
+        std::fs::write(&f, &slow).unwrap();
+        let mut child = Command::new(env!("CARGO_BIN_EXE_poa"))
+            .arg(&f)
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap();
+        let temp = || {
+            std::fs::read_dir(dir.path()).unwrap().any(|e| {
+                e.unwrap()
+                    .file_name()
+                    .to_string_lossy()
+                    .contains(".poa-tmp-")
+            })
+        };
+        let start = std::time::Instant::now();
+        while !temp() && start.elapsed().as_secs() < 20 {
+            std::thread::sleep(std::time::Duration::from_millis(2));
+        }
+        assert!(temp(), "no temporary file seen");
+        // SAFETY: kill sends a signal to the child we spawned.
+        unsafe { libc::kill(child.id() as libc::pid_t, sig) };
+        let status = child.wait().unwrap();
+        assert_eq!(status.signal(), Some(sig), "{status:?}");
+        let names: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(names.len(), 1, "left behind: {names:?}");
+        assert_eq!(std::fs::read(&f).unwrap(), slow.as_bytes());
+    }
+}
