@@ -388,6 +388,9 @@ struct State {
     /// Moves of the layer being read, and the line where one past [`MAX_LAYER_MOVES`] came.
     layer_moves: usize,
     too_many_moves: Option<u64>,
+    /// Whether anything was extruded yet, and the line of a G20 that came after.
+    printed: bool,
+    inches_mid_print: Option<u64>,
     ready: VecDeque<Layer>,
     next_index: usize,
     prev_layer_z: f64,
@@ -503,6 +506,14 @@ impl<R: BufRead> LayerReader<R> {
         self.partial.extend_from_slice(&buf[used..]);
         let n = buf.len();
         self.input.consume(n);
+        if let Some(line) = self.st.inches_mid_print {
+            return Err(io::Error::new(
+                io::ErrorKind::InvalidData,
+                format!(
+                    "line {line}: G20 (inches) after printing began would print the rest 25.4 times larger; the file is damaged: slice it again"
+                ),
+            ));
+        }
         if let Some(line) = self.st.too_many_moves {
             return Err(io::Error::new(
                 io::ErrorKind::InvalidData,
@@ -586,6 +597,8 @@ impl State {
             held: Vec::new(),
             layer_moves: 0,
             too_many_moves: None,
+            printed: false,
+            inches_mid_print: None,
             ready: VecDeque::new(),
             next_index: 0,
             prev_layer_z: 0.0,
@@ -629,6 +642,13 @@ impl State {
             _ => {}
         }
 
+        if self.printed
+            && !self.machine.inches()
+            && self.inches_mid_print.is_none()
+            && matches!(parsed.command, Command::Code { letter: b'G', number } if number == 20.0)
+        {
+            self.inches_mid_print = Some(number);
+        }
         let action = self.machine.step(&parsed, number);
         if let Some(e) = &mut self.estimator {
             e.line(&parsed, &action);
@@ -891,6 +911,7 @@ impl State {
             }
             return;
         }
+        self.printed = true;
         let z = m.to[2];
         let spiral = (m.to[2] - m.from[2]).abs() > 1e-9;
         if spiral && !self.facts.spiral_vase {

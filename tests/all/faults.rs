@@ -66,6 +66,7 @@ G1 X0 Y0\nG1 X10 Y0 E0.5\nG1 X10 Y10 E0.5\n";
         ("z going down", format!("{base};LAYER_CHANGE\n;Z:0.1\nG1 Z0.1\nG1 X0 Y0 E1\nG1 Z-5\nG1 X5 E1\n").into_bytes()),
         ("g91 left on", format!("{base}G91\nG1 X1 Y1 E0.1\nG1 Z0.2\nG1 X-1 E0.1\n").into_bytes()),
         ("inches", format!("{base}G20\nG1 X1 Y1 E0.01\nG1 Z0.016\nG1 X2 E0.01\n").into_bytes()),
+        ("inches from the start", format!("G20\n{base}").replace("X10", "X0.4").into_bytes()),
         ("long line", format!("{base}; {}\nG1 X5 E0.2\n", "y".repeat(100_000)).into_bytes()),
         ("unbalanced parentheses", format!("{base}G1 X5 (comment E0.2\nG1 (a)(b X6 E0.1\n)\n").into_bytes()),
         ("checksum errors", format!("{base}N1 G1 X1*12\nN2 G1 X2 E0.1*999\nN3*\n").into_bytes()),
@@ -242,10 +243,10 @@ fn an_interrupted_run_removes_its_temporary_file() {
     use std::os::unix::process::ExitStatusExt;
     let text = String::from_utf8(read(&sample("circ_overhang_prusa_rel.gcode"))).unwrap();
     let lines: Vec<&str> = text.split('\n').collect();
-    // Inches from a third of the way in: a slow file (seconds), so the run is still
-    // writing when the signal comes.
+    // Relative moves from a third of the way in: a slow file (half a second), so the run
+    // is still writing when the signal comes.
     let at = lines.len() / 3;
-    let slow = [&lines[..at], &["G20"], &lines[at..]].concat().join("\n");
+    let slow = [&lines[..at], &["G91"], &lines[at..]].concat().join("\n");
     for sig in [libc::SIGTERM, libc::SIGINT, libc::SIGHUP] {
         let dir = tempfile::tempdir().unwrap();
         let f = dir.path().join("in.gcode");
@@ -280,4 +281,31 @@ fn an_interrupted_run_removes_its_temporary_file() {
         assert_eq!(names.len(), 1, "left behind: {names:?}");
         assert_eq!(std::fs::read(&f).unwrap(), slow.as_bytes());
     }
+}
+
+/// G20 after printing began (a damaged file) would print the rest 25.4 times larger: refused
+/// in one line naming the line (it took 20-400 s of planning loops over parts a metre
+/// wide); a file in inches from its start is read as such.
+#[test]
+fn inches_after_printing_began_are_refused() {
+    let text = String::from_utf8(read(&sample("circ_overhang_prusa_rel.gcode"))).unwrap();
+    let lines: Vec<&str> = text.split('\n').collect();
+    let at = lines.len() / 3;
+    let damaged = [&lines[..at], &["G20"], &lines[at..]].concat().join("\n");
+    let o = survive("G20 mid-print", damaged.as_bytes());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "{err}");
+    assert!(
+        err.contains(&format!(
+            "line {}: G20 (inches) after printing began",
+            at + 1
+        )),
+        "{err}"
+    );
+    let o = Command::new(env!("CARGO_BIN_EXE_poa"))
+        .arg("info")
+        .arg(sample("inches_g20.gcode"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }
