@@ -178,6 +178,18 @@ fn killed_mid_write_leaves_the_original_and_the_next_run_cleans_up() {
     assert_eq!(names.len(), 1, "{names:?}");
 }
 
+/// The half-disc sample with `line` inserted a third of the way in (mid-layer), and the
+/// 0-based index of the inserted line.
+fn circ_with(line: &str) -> (String, usize) {
+    let text = String::from_utf8(read(&sample("circ_overhang_prusa_rel.gcode"))).unwrap();
+    let lines: Vec<&str> = text.split('\n').collect();
+    let at = lines.len() / 3;
+    (
+        [&lines[..at], &[line], &lines[at..]].concat().join("\n"),
+        at,
+    )
+}
+
 /// Largest resident size (KB) of any child process this test binary has waited for.
 fn children_peak_kb() -> i64 {
     let mut u: libc::rusage = unsafe { std::mem::zeroed() };
@@ -192,12 +204,9 @@ fn children_peak_kb() -> i64 {
 /// bounded memory, a clean success or refusal like any other.
 #[test]
 fn a_stray_g91_mid_print_stays_within_memory() {
-    let text = String::from_utf8(read(&sample("circ_overhang_prusa_rel.gcode"))).unwrap();
-    let lines: Vec<&str> = text.split('\n').collect();
     // A third of the way in, mid-layer: the half-disc's region then lies kilometres wide
     // (843 MB for this 1 MB file before the bounds; 7 GB for a plate of nine mushrooms).
-    let at = lines.len() / 3;
-    let damaged = [&lines[..at], &["G91"], &lines[at..]].concat().join("\n");
+    let (damaged, _) = circ_with("G91");
     survive("a stray G91", damaged.as_bytes());
     let peak = children_peak_kb();
     assert!(peak < 400_000, "a child peaked at {peak} KB");
@@ -241,12 +250,9 @@ fn a_layer_of_millions_of_moves_is_refused() {
 #[test]
 fn an_interrupted_run_removes_its_temporary_file() {
     use std::os::unix::process::ExitStatusExt;
-    let text = String::from_utf8(read(&sample("circ_overhang_prusa_rel.gcode"))).unwrap();
-    let lines: Vec<&str> = text.split('\n').collect();
     // Relative moves from a third of the way in: a slow file (half a second), so the run
     // is still writing when the signal comes.
-    let at = lines.len() / 3;
-    let slow = [&lines[..at], &["G91"], &lines[at..]].concat().join("\n");
+    let (slow, _) = circ_with("G91");
     for sig in [libc::SIGTERM, libc::SIGINT, libc::SIGHUP] {
         let dir = tempfile::tempdir().unwrap();
         let f = dir.path().join("in.gcode");
@@ -288,10 +294,7 @@ fn an_interrupted_run_removes_its_temporary_file() {
 /// wide); a file in inches from its start is read as such.
 #[test]
 fn inches_after_printing_began_are_refused() {
-    let text = String::from_utf8(read(&sample("circ_overhang_prusa_rel.gcode"))).unwrap();
-    let lines: Vec<&str> = text.split('\n').collect();
-    let at = lines.len() / 3;
-    let damaged = [&lines[..at], &["G20"], &lines[at..]].concat().join("\n");
+    let (damaged, at) = circ_with("G20");
     let o = survive("G20 mid-print", damaged.as_bytes());
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success(), "{err}");

@@ -22,7 +22,10 @@ fn round_trip(data: &[u8]) {
             // The one refusal such lines can reach: inches after printing began (the rest
             // would print 25.4 times larger). Nothing else may fail.
             Err(e) => {
-                assert!(e.to_string().contains("G20 (inches) after printing began"), "{e}");
+                assert!(
+                    e.to_string().contains("G20 (inches) after printing began"),
+                    "{e}"
+                );
                 return;
             }
         }
