@@ -285,6 +285,18 @@ const POW10: [f64; 23] = [
 ];
 
 /// A word: letter, optional blanks, number.
+/// Whether `text` starts with a move command's word (G0-G3, G92) followed by a blank.
+pub fn is_move_word(text: &[u8]) -> bool {
+    match word(text) {
+        Ok((rest, w)) => {
+            w.letter == b'G'
+                && [0.0, 1.0, 2.0, 3.0, 92.0].contains(&w.value)
+                && rest.first().is_some_and(|&b| is_blank(b))
+        }
+        Err(_) => false,
+    }
+}
+
 fn word(input: &[u8]) -> IResult<&[u8], Word> {
     match input.first() {
         Some(&c) if c.is_ascii_alphabetic() => {

@@ -639,6 +639,14 @@ impl State {
             Command::Unknown(text) if text.starts_with(b"M486") => {
                 self.handle_m486(&parsed, content)
             }
+            // A move with a word that is no number (`G1 XNaN Y20 E1`) is not read, E and all:
+            // say so, as for a number out of range.
+            Command::Unknown(text) if crate::gcode::is_move_word(text) => {
+                let shown = String::from_utf8_lossy(&text[..text.len().min(60)]).into_owned();
+                self.diagnostics.add("bad-move", number, || {
+                    format!("`{shown}` has a word that is no number; the move was ignored")
+                });
+            }
             _ => {}
         }
 
@@ -1363,6 +1371,24 @@ mod tests {
 G1 X0 Y0\nG1 X60 E9 ; intro line\n;LAYER_CHANGE\n;Z:0.2\n;HEIGHT:0.2\n;TYPE:External perimeter\n\
 ;WIDTH:0.45\nG1 X10 Y0\nG1 X20 Y0 E0.5\nG1 X20 Y10 E0.5\n;TYPE:Internal infill\nG1 X10 Y10 E0.5\n\
 ;LAYER_CHANGE\n;Z:0.4\n;HEIGHT:0.2\nG1 Z0.4\n;TYPE:External perimeter\nG1 X10 Y0 E0.5\nM107\n";
+
+    #[test]
+    fn a_move_with_a_word_that_is_no_number_is_noted() {
+        let src = format!("{PRUSA}G1 XNaN Y20 E1\nG1 Xinf E1\nM117 Hello world\n");
+        let mut r = LayerReader::new(src.as_bytes(), ReaderOptions::default());
+        for l in r.by_ref() {
+            l.unwrap();
+        }
+        let d = r.diagnostics();
+        assert!(d.has("bad-move"));
+        let notes = d.list();
+        let (line, text, count) = notes.iter().find(|n| n.1.contains("no number")).unwrap();
+        let first = PRUSA.lines().count() as u64 + 1;
+        assert_eq!((*line, *count), (first, 2), "{notes:?}");
+        assert!(text.contains("`G1 XNaN Y20 E1`"), "{text}");
+        // A message command's text is no move.
+        assert!(!notes.iter().any(|n| n.1.contains("M117")), "{notes:?}");
+    }
 
     #[test]
     fn kiri_moto_pushes_relative_e_without_saying_m83() {
