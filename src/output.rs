@@ -13,8 +13,9 @@
 //!   regular file keeps being a link (the file it points to is replaced);
 //! - a destination that is not a regular file (`/dev/null`, a terminal, a FIFO) is written
 //!   through and never renamed over or removed;
-//! - a temporary file is removed only by the run that made it, or later when the process that
-//!   made it is gone; a run never removes another live run's file.
+//! - a temporary file is removed only by the run that made it (also when the run is stopped by
+//!   SIGINT, SIGTERM or SIGHUP: [`remove_temps_on_signals`]), or later when the process that
+//!   made it is gone (SIGKILL); a run never removes another live run's file.
 
 use std::fs::{self, File, OpenOptions};
 use std::io::{self, BufWriter, Write};
