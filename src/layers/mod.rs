@@ -13,7 +13,7 @@
 //! - Layer boundaries come from the slicer's own markers when the file has them; otherwise from
 //!   the Z at which material is extruded (travel lifts and z-hops never start a layer).
 //! - Refusals (an `io::Error` of kind `InvalidData`, the stream ends): a line over 1 MiB, a
-//!   layer of more than [`MAX_LAYER_MOVES`] moves, and a G20 after printing began; every
+//!   layer of more than 4 million moves, and a G20 after printing began; every
 //!   other input is read.
 
 // The settings a file states about itself sit in their own stage, below this one, so that the
