@@ -88,8 +88,27 @@ fn target(dest: &Path, inputs: &[&Path]) -> Result<Target> {
         Ok(_) => Ok(Target::Replace(
             fs::canonicalize(dest).unwrap_or_else(|_| dest.to_path_buf()),
         )),
-        Err(_) => Ok(Target::Replace(dest.to_path_buf())),
+        // A link to nothing yet stays a link too: the file it names is created.
+        Err(_) => Ok(Target::Replace(link_target(dest))),
     }
+}
+
+/// Where `dest` leads when it is a symbolic link to a file that does not exist yet (links
+/// followed up to 40 deep, relative ones from their own folder); `dest` itself otherwise.
+fn link_target(dest: &Path) -> PathBuf {
+    let mut at = dest.to_path_buf();
+    for _ in 0..40 {
+        let is_link = fs::symlink_metadata(&at).is_ok_and(|m| m.file_type().is_symlink());
+        let Some(next) = is_link.then(|| fs::read_link(&at).ok()).flatten() else {
+            return at;
+        };
+        at = if next.is_absolute() {
+            next
+        } else {
+            dir_of(&at).join(next)
+        };
+    }
+    dest.to_path_buf()
 }
 
 fn dir_of(path: &Path) -> PathBuf {

@@ -249,6 +249,32 @@ fn devices_and_fifos_are_written_through_never_replaced() {
     assert!(temps(dir.path()).is_empty());
 }
 
+/// An output that is a symbolic link stays one: the file it points to is written, also when
+/// that file does not exist yet (a link to nothing was replaced by a regular file), through a
+/// relative link and a chain of two.
+#[test]
+fn an_output_link_stays_a_link_even_to_a_file_not_there_yet() {
+    let f = sample("rect_overhang_prusa_rel.gcode");
+    let dir = tempfile::tempdir().unwrap();
+    let sub = dir.path().join("real");
+    std::fs::create_dir(&sub).unwrap();
+    let link = dir.path().join("out.gcode");
+    let hop = dir.path().join("hop.gcode");
+    std::os::unix::fs::symlink("hop.gcode", &link).unwrap();
+    std::os::unix::fs::symlink("real/target.gcode", &hop).unwrap();
+    let o = run(&[&"process", &f, &"-o", &link]);
+    assert!(o.status.success(), "{}", err(&o));
+    for l in [&link, &hop] {
+        assert!(std::fs::symlink_metadata(l)
+            .unwrap()
+            .file_type()
+            .is_symlink());
+    }
+    let written = std::fs::read(sub.join("target.gcode")).unwrap();
+    assert!(String::from_utf8_lossy(&written).contains(";POA_BEGIN"));
+    assert!(temps(dir.path()).is_empty() && temps(&sub).is_empty());
+}
+
 /// Case 5: slicer mode inserted its header into any text file (an STL, then rejected by
 /// PrusaSlicer).
 #[test]
