@@ -394,9 +394,16 @@ pub fn write_atomic_twice<T>(
                 done = second;
             }
             file.sync_all().map_err(werr)?;
-            // Keep the original's permissions when replacing it.
+            // Keep the original's permissions when replacing it, and its owner where this
+            // process may set it (run as root, the file stayed the user's, not root's).
             if let Ok(meta) = fs::metadata(&real) {
                 let _ = fs::set_permissions(&done.path, meta.permissions());
+                #[cfg(unix)]
+                {
+                    use std::os::unix::fs::MetadataExt;
+                    let _ =
+                        std::os::unix::fs::chown(&done.path, Some(meta.uid()), Some(meta.gid()));
+                }
             }
             fs::rename(&done.path, &real).map_err(werr)?;
             done.keep();

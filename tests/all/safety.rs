@@ -275,6 +275,31 @@ fn an_output_link_stays_a_link_even_to_a_file_not_there_yet() {
     assert!(temps(dir.path()).is_empty() && temps(&sub).is_empty());
 }
 
+/// Slicer mode keeps the file's owner, group and mode: run as root on a user's file, the
+/// rewrite was left owned by root. (Without root the owner cannot be given away, and this
+/// checks the mode only.)
+#[test]
+fn the_rewritten_file_keeps_its_owner_and_mode() {
+    use std::os::unix::fs::{MetadataExt, PermissionsExt};
+    let dir = tempfile::tempdir().unwrap();
+    let f = copy_sample(dir.path(), "rect_overhang_prusa_rel.gcode", "in.gcode");
+    std::fs::set_permissions(&f, std::fs::Permissions::from_mode(0o640)).unwrap();
+    // SAFETY: geteuid has no preconditions.
+    let root = unsafe { libc::geteuid() } == 0;
+    if root {
+        std::os::unix::fs::chown(&f, Some(1234), Some(1234)).unwrap();
+    } else {
+        println!("note: not root; the owner is not given away, only the mode is checked");
+    }
+    let before = std::fs::metadata(&f).unwrap();
+    let o = run(&[&f]);
+    assert!(o.status.success(), "{}", err(&o));
+    let after = std::fs::metadata(&f).unwrap();
+    assert_ne!(before.ino(), after.ino(), "replaced by rename");
+    assert_eq!(after.mode() & 0o777, 0o640);
+    assert_eq!((after.uid(), after.gid()), (before.uid(), before.gid()));
+}
+
 /// Case 5: slicer mode inserted its header into any text file (an STL, then rejected by
 /// PrusaSlicer).
 #[test]
