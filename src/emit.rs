@@ -1295,6 +1295,10 @@ const WORSE_IN_AIR: f64 = 0.3;
 /// `--bridges auto` rewrites it: the acceptance's own mark for what a layer may keep in air.
 const HANGING_BRIDGE: f64 = 1.0;
 
+/// How far (mm) round the zones a rewritten layer is judged against the slicer's: the deposition
+/// check's longest bridge ([`crate::check::CheckOptions::max_bridge`]'s default).
+const JUDGE_REACH: f64 = 10.0;
+
 /// Longest hop (mm) into or out of a gradual overhang's block made without retraction.
 const THIN_HOP: f64 = 10.0;
 
@@ -1687,10 +1691,15 @@ impl<'a> PoaPass<'a> {
         }
         // Only near the regions: a plate-wide layer costs as much to judge as its region
         // search.
+        // Grown by the longest bridge the check counts: the slicer's strands cut at a zone's
+        // edge (or trimmed back to what holds them) lie beside it, and a run of theirs that
+        // lost the end it was bridged to is in air now (an embossed letter's skin line, 4 mm
+        // from a 1 mm2 region's zone: 0 -> 1.2 mm in air on the layer, unjudged).
+        let m = JUDGE_REACH;
         let window = zones
             .iter()
             .filter_map(|z| z.bounding_rect())
-            .map(|b| ([b.min().x, b.min().y], [b.max().x, b.max().y]))
+            .map(|b| ([b.min().x - m, b.min().y - m], [b.max().x + m, b.max().y + m]))
             .reduce(|a, b| {
                 (
                     [a.0[0].min(b.0[0]), a.0[1].min(b.0[1])],
