@@ -624,6 +624,17 @@ const TALL_INFILL: f64 = 1.7;
 /// In-air length (mm) of the strands of `layer` that come within `window` (min, max
 /// corners), judged as [`check_layer`] judges them: only what lies near the window is
 /// looked at (a rewritten region's neighbourhood on a plate-wide layer).
+/// [`check_layer`] of the strands of `layer` that come within `window`, with their samples.
+pub fn check_layer_within(
+    below: &[&Layer],
+    layer: &Layer,
+    filament_area: f64,
+    window: ([f64; 2], [f64; 2]),
+) -> LayerCheck {
+    let opts = CheckOptions::default();
+    check_within(below, &[], layer, filament_area, &opts, true, Some(window))
+}
+
 pub fn in_air_within(
     below: &[&Layer],
     layer: &Layer,

@@ -58,7 +58,7 @@ pub const SPECS: &[Spec] = &[
     Spec { key: "tolerance", kind: Kind::Auto { min: 0.0, max: 10.0 }, default: "auto", unit: "mm", help: "distance from the layer below that still counts as supported (auto: half the external perimeter width)" },
     Spec { key: "overhang_angle", kind: Kind::Auto { min: 0.0, max: 89.9 }, default: "auto", unit: "deg", help: "the tolerance as an overhang angle from vertical (overrides tolerance)" },
     Spec { key: "min_width", kind: Kind::Auto { min: 0.0, max: 50.0 }, default: "auto", unit: "mm", help: "narrowest region rewritten (auto: a tenth of a perimeter width, so gradual overhangs are rewritten too)" },
-    Spec { key: "min_area", kind: Kind::Number { min: 0.0, max: 100_000.0 }, default: "1.0", unit: "mm2", help: "smallest region rewritten" },
+    Spec { key: "min_area", kind: Kind::Number { min: 0.0, max: 100_000.0 }, default: "0.2", unit: "mm2", help: "smallest region rewritten; those under 1 mm2 only where the slicer's strands over them would be in air" },
 ];
 
 /// The values a key takes and its default, as `--help`, `poa config` and `poa profiles show`

@@ -925,9 +925,11 @@ fn a_tilted_ring_s_many_short_gradual_overhangs_cost_little_time() {
             after.time_s,
             before.time_s
         );
-        // PrusaSlicer's coarse layers hang most.
+        // PrusaSlicer's coarse layers hang most. Its spoke's leading face, a strip under
+        // 1 mm2 a layer whose perimeter hangs 2-3 mm, is held too (208 -> 33 mm in air when
+        // regions under 1 mm2 were never rewritten; 12 mm now).
         if slicer == "PrusaSlicer" {
-            cut_to(&what, &before, &after, 0.2);
+            cut_to(&what, &before, &after, 0.08);
         }
         println!(
             "{what}: {} gradual rings, in air {:.1} -> {:.1} mm, time {:.0} -> {:.0} s",
