@@ -1295,6 +1295,26 @@ const WORSE_IN_AIR: f64 = 0.3;
 /// `--bridges auto` rewrites it: the acceptance's own mark for what a layer may keep in air.
 const HANGING_BRIDGE: f64 = 1.0;
 
+/// The box holding `boxes`, grown by `m` mm on every side; `None` for no box.
+fn window_round(
+    boxes: impl Iterator<Item = geo::Rect<f64>>,
+    m: f64,
+) -> Option<([f64; 2], [f64; 2])> {
+    boxes
+        .map(|b| {
+            (
+                [b.min().x - m, b.min().y - m],
+                [b.max().x + m, b.max().y + m],
+            )
+        })
+        .reduce(|a, b| {
+            (
+                [a.0[0].min(b.0[0]), a.0[1].min(b.0[1])],
+                [a.1[0].max(b.1[0]), a.1[1].max(b.1[1])],
+            )
+        })
+}
+
 /// Regions smaller than this (mm2) are rewritten only where the deposition check finds the
 /// slicer's strands over them in air (more than [`HANGING_BRIDGE`]), as `--bridges auto`
 /// does for bridges: the arcs closing a small window in a thin wall, a narrow arm's gradual
@@ -1660,22 +1680,13 @@ impl<'a> PoaPass<'a> {
         let bridges = regions.iter().any(|r| {
             r.kind == RegionKind::Bridge && self.opts.settings.bridges == BridgeMode::Auto
         });
-        let window = regions
-            .iter()
-            .filter(|r| auto(r))
-            .filter_map(|r| r.polygon.bounding_rect())
-            .map(|b| {
-                (
-                    [b.min().x - m, b.min().y - m],
-                    [b.max().x + m, b.max().y + m],
-                )
-            })
-            .reduce(|a, b| {
-                (
-                    [a.0[0].min(b.0[0]), a.0[1].min(b.0[1])],
-                    [a.1[0].max(b.1[0]), a.1[1].max(b.1[1])],
-                )
-            });
+        let window = window_round(
+            regions
+                .iter()
+                .filter(|r| auto(r))
+                .filter_map(|r| r.polygon.bounding_rect()),
+            m,
+        );
         let fa = self.motion.filament_area;
         let c = match window.filter(|_| !bridges) {
             Some(w) => crate::check::check_layer_within(&below, layer, fa, w),
@@ -1734,21 +1745,7 @@ impl<'a> PoaPass<'a> {
         // lost the end it was bridged to is in air now (an embossed letter's skin line, 4 mm
         // from a 1 mm2 region's zone: 0 -> 1.2 mm in air on the layer, unjudged).
         let m = JUDGE_REACH;
-        let window = zones
-            .iter()
-            .filter_map(|z| z.bounding_rect())
-            .map(|b| {
-                (
-                    [b.min().x - m, b.min().y - m],
-                    [b.max().x + m, b.max().y + m],
-                )
-            })
-            .reduce(|a, b| {
-                (
-                    [a.0[0].min(b.0[0]), a.0[1].min(b.0[1])],
-                    [a.1[0].max(b.1[0]), a.1[1].max(b.1[1])],
-                )
-            })?;
+        let window = window_round(zones.iter().filter_map(|z| z.bounding_rect()), m)?;
         let fa = self.motion.filament_area;
         let after = crate::check::in_air_within(below, back, fa, window);
         let before = crate::check::in_air_within(below, layer, fa, window);
