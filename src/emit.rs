@@ -1655,11 +1655,11 @@ impl<'a> PoaPass<'a> {
         (chosen, left)
     }
 
-    /// For each of `regions`, whether it is a bridge that `--bridges auto` rewrites: the
-    /// deposition check finds more than [`HANGING_BRIDGE`] mm of the slicer's strands over
-    /// it in air (spans longer than the check's longest bridge, strands along a gap instead
+    /// For each of `regions`, whether it is a bridge that `--bridges auto` rewrites, or a
+    /// region under [`SMALL_REGION`] that is rewritten: the deposition check finds more than
+    /// [`HANGING_BRIDGE`] mm of the slicer's strands over it in air (spans longer than the check's longest bridge, strands along a gap instead
     /// of across it: a stair of fins by Cura, 75 mm in air on each gap's first layer).
-    fn hanging_bridges(&self, layer: &Layer, regions: &[crate::geometry::Region]) -> Vec<bool> {
+    fn hanging(&self, layer: &Layer, regions: &[crate::geometry::Region]) -> Vec<bool> {
         use geo::Contains;
         let auto = |r: &crate::geometry::Region| {
             (r.kind == RegionKind::Bridge && self.opts.settings.bridges == BridgeMode::Auto)
@@ -2045,7 +2045,7 @@ impl PoaPass<'_> {
             }
             _ => (&d.regions[..], false),
         };
-        let hanging = self.hanging_bridges(&d.layer, regions);
+        let hanging = self.hanging(&d.layer, regions);
         let (chosen, left) = self.choose(d, regions, above_rewrite, &hanging);
         let rewrites = if chosen.is_empty() {
             Vec::new()

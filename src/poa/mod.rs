@@ -377,6 +377,7 @@ pub(super) fn plan_in(
         let mut at = start;
         let mut strands = Vec::new();
         let mut loops = 0;
+        let mut held = 0;
         for k in 1..=(extent.min(2000.0) / step).ceil() as usize + 2 {
             let ring = if k == 1 {
                 rings(&front)
@@ -403,12 +404,7 @@ pub(super) fn plan_in(
                 width,
             };
             let before = strands.len();
-            if strands
-                .iter()
-                .map(|s: &Strand| s.points.len())
-                .sum::<usize>()
-                > PLAN_POINTS
-            {
+            if held > PLAN_POINTS {
                 return no_plan(MultiPolygon::new(Vec::new()));
             }
             // Full width where most of the ring lies well inside the perimeter, half width
@@ -431,6 +427,10 @@ pub(super) fn plan_in(
                 };
                 strands.extend(shape(w / 2.0).strands(half, 2.0 * w, &mut at));
             }
+            held += strands[before..]
+                .iter()
+                .map(|s| s.points.len())
+                .sum::<usize>();
             if strands.len() > before {
                 loops = k;
             }
