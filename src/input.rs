@@ -10,7 +10,8 @@
 //! would never end and a FIFO without a writer would block), damaged binary G-code, text files
 //! with binary data in their head, and text that holds no G-code command (an STL, OBJ or any
 //! other text file). The slicer settings poa uses are range-checked here, once, for every
-//! command. A file is read up to the size it had when opened.
+//! command. A file is read up to the size it had when opened. [`open_regular`] and
+//! [`read_all`] give a checked regular file as it is, for commands that read it their own way.
 
 use std::fs::File;
 use std::io::{BufRead, BufReader, Read, Seek, SeekFrom};
@@ -43,23 +44,7 @@ pub fn open(path: &Path) -> Result<Opened> {
         path: path.to_path_buf(),
         source,
     };
-    // stat does not block on a FIFO, so what is not a regular file is refused before opening.
-    let meta = std::fs::metadata(path).map_err(read_err)?;
-    check_regular(path, &meta)?;
-    // Non-blocking, so that a file swapped for a FIFO since cannot hang the open either; the
-    // opened file is checked again.
-    let file = {
-        use std::os::unix::fs::OpenOptionsExt;
-        std::fs::OpenOptions::new()
-            .read(true)
-            .custom_flags(libc::O_NONBLOCK)
-            .open(path)
-            .map_err(read_err)?
-    };
-    let meta = file.metadata().map_err(read_err)?;
-    check_regular(path, &meta)?;
-    let size = meta.len();
-    let mut file = file;
+    let (mut file, size) = open_regular(path)?;
     let mut head = vec![0u8; HEAD_BYTES.min(size) as usize];
     file.read_exact(&mut head).map_err(read_err)?;
     if bgcode::is_bgcode(&head) {
@@ -173,21 +158,43 @@ pub fn infer_filament_diameter<R: Read>(
     Ok(())
 }
 
-/// Reads a whole regular file (up to the size it had when opened), refusing devices, FIFOs
-/// and folders as [`open`] does.
-pub fn read_all(path: &Path) -> Result<Vec<u8>> {
+/// Opens a regular file for reading and returns it with its size then (read no further: a
+/// file that keeps growing is not read forever). Devices, FIFOs, sockets and folders are
+/// refused, naming what they are, before they are opened.
+pub fn open_regular(path: &Path) -> Result<(File, u64)> {
     let read_err = |source| Error::Read {
         path: path.to_path_buf(),
         source,
     };
-    check_regular(path, &std::fs::metadata(path).map_err(read_err)?)?;
-    let file = File::open(path).map_err(read_err)?;
+    // stat does not block on a FIFO, so what is not a regular file is refused before opening.
+    let meta = std::fs::metadata(path).map_err(read_err)?;
+    check_regular(path, &meta)?;
+    // Non-blocking, so that a file swapped for a FIFO since cannot hang the open either; the
+    // opened file is checked again.
+    let file = {
+        use std::os::unix::fs::OpenOptionsExt;
+        std::fs::OpenOptions::new()
+            .read(true)
+            .custom_flags(libc::O_NONBLOCK)
+            .open(path)
+            .map_err(read_err)?
+    };
     let meta = file.metadata().map_err(read_err)?;
     check_regular(path, &meta)?;
-    let mut data = Vec::with_capacity(meta.len() as usize);
-    file.take(meta.len())
+    Ok((file, meta.len()))
+}
+
+/// Reads a whole regular file (up to the size it had when opened), refusing devices, FIFOs
+/// and folders as [`open`] does.
+pub fn read_all(path: &Path) -> Result<Vec<u8>> {
+    let (file, size) = open_regular(path)?;
+    let mut data = Vec::with_capacity(size as usize);
+    file.take(size)
         .read_to_end(&mut data)
-        .map_err(read_err)?;
+        .map_err(|source| Error::Read {
+            path: path.to_path_buf(),
+            source,
+        })?;
     Ok(data)
 }
 

@@ -10,7 +10,8 @@
 //! ([`crate::emit::process`], which copies every other line byte for byte and updates the
 //! footer) -> finish (the `M73` progress lines get the added time; binary G-code is encoded
 //! again block by block) -> atomic write ([`crate::output`]). A file poa rewrote before is
-//! left alone (`Ok(None)`).
+//! left alone (`Ok(None)`). [`convert_file`] (`poa convert`, text <-> binary G-code) streams
+//! the file through [`crate::bgcode::stream`] into the atomic write, in bounded memory.
 
 use std::io::{BufRead, Read};
 use std::path::Path;
@@ -364,40 +365,52 @@ fn footer_start(text: &[u8]) -> usize {
 }
 
 /// `poa convert`: binary G-code to text, or PrusaSlicer text to binary (`libbgcode`: the
-/// reference converter's settings, print metadata uncompressed), whichever `input` is.
+/// reference converter's settings, print metadata uncompressed), whichever `input` is (by its
+/// first bytes). Streamed both ways ([`bgcode::stream::to_ascii`],
+/// [`bgcode::stream::from_ascii`]), so memory stays bounded (one line, one block and the
+/// metadata) whatever the file's size; the bytes are those of the whole-file converters. A
+/// refusal leaves `out` as it was (the atomic write: a device or pipe is given nothing).
 pub fn convert_file(input: &Path, out: &Path, libbgcode: bool) -> Result<()> {
     output::check_not_input(out, &[input])?;
-    let data = input::read_all(input)?;
-    let bytes = if bgcode::is_bgcode(&data) {
-        bgcode::decode(&data)
-            .map_err(|e| Error::NotGcode {
+    let (mut file, size) = input::open_regular(input)?;
+    let read_err = |source| Error::Read {
+        path: input.to_path_buf(),
+        source,
+    };
+    let mut head = [0u8; 4];
+    let n = size.min(head.len() as u64) as usize;
+    file.read_exact(&mut head[..n]).map_err(read_err)?;
+    let binary = bgcode::is_bgcode(&head[..n]);
+    let mut config = bgcode::BinarizeConfig::prusaslicer();
+    if libbgcode {
+        config.print_metadata = bgcode::Compression::None;
+    }
+    output::write_atomic(out, &[input], |w| {
+        let done = if binary {
+            bgcode::stream::to_ascii(&mut file, size, w)
+        } else {
+            bgcode::stream::from_ascii(&mut file, size, &config, w)
+        };
+        done.map(drop).map_err(|e| match e {
+            bgcode::stream::ConvertError::Format(e) if binary => Error::NotGcode {
                 path: input.to_path_buf(),
                 reason: format!("the binary G-code is damaged: {e}"),
-            })?
-            .to_ascii()
-    } else {
-        // The reader's line limit holds here too: a binary file made of a longer line is
-        // one poa (and the printer) refuses to read back.
-        let ends = memchr::memchr_iter(b'\n', &data).chain(std::iter::once(data.len()));
-        let mut start = 0;
-        for (n, end) in ends.enumerate() {
-            if end - start > crate::gcode::MAX_LINE {
-                return Err(Error::Read {
-                    path: input.to_path_buf(),
-                    source: crate::gcode::line_too_long(n as u64 + 1),
-                });
+            },
+            bgcode::stream::ConvertError::Format(e) => {
+                Error::Invalid(format!("{}: {e}", input.display()))
             }
-            start = end + 1;
-        }
-        let mut config = bgcode::BinarizeConfig::prusaslicer();
-        if libbgcode {
-            config.print_metadata = bgcode::Compression::None;
-        }
-        let file = bgcode::from_ascii(&data, &config)
-            .map_err(|e| Error::Invalid(format!("{}: {e}", input.display())))?;
-        bgcode::encode(&file)
-    };
-    output::write_bytes(out, &[input], &bytes)
+            // The reader's line limit holds here too: a binary file made of a longer line
+            // is one poa (and the printer) refuses to read back.
+            bgcode::stream::ConvertError::LineTooLong(line) => {
+                read_err(crate::gcode::line_too_long(line))
+            }
+            bgcode::stream::ConvertError::Read(source) => read_err(source),
+            bgcode::stream::ConvertError::Write(source) => Error::Write {
+                path: out.to_path_buf(),
+                source,
+            },
+        })
+    })
 }
 
 /// What `poa deform` did.

@@ -10,10 +10,17 @@
 //! blocks; empty comment lines are dropped; everything else is G-code, cut into blocks of at
 //! most 64 KiB of text at line ends.
 //!
+//! The rules live in [`AsciiScan`], fed one line at a time: [`from_ascii`] feeds it a text in
+//! memory, [`super::stream::from_ascii`] a file of any size read line by line through
+//! [`LineSource`] (twice: the metadata blocks come first in the binary, yet the statistics
+//! come last in the text), and both give the same bytes. What the scanner gathers is capped
+//! at [`MAX_HELD`] bytes.
+//!
 //! What text cannot tell (which compression each block had, and the inline comments that
 //! MeatPack dropped) comes from the config, so a round trip is exact only where the text holds
 //! everything the binary did.
 
+use super::stream::ConvertError;
 use super::{
     Bgcode, BgcodeError, Block, BlockKind, BlockParams, ChecksumType, Compression, GcodeEncoding,
     MetadataEncoding, ThumbnailFormat,
@@ -169,16 +176,17 @@ fn key_value(s: &[u8]) -> Option<(&[u8], &[u8])> {
 }
 
 /// Lines ending at `\r`, `\n` or `\r\n`, without their ending, each cut at its first NUL.
-fn lines(text: &[u8]) -> Vec<&[u8]> {
-    let mut out = Vec::new();
+fn lines(text: &[u8]) -> impl Iterator<Item = &[u8]> {
     let mut i = 0;
-    while i < text.len() {
+    std::iter::from_fn(move || {
+        if i >= text.len() {
+            return None;
+        }
         let end = text[i..]
             .iter()
             .position(|&c| c == b'\n' || c == b'\r')
             .map_or(text.len(), |p| i + p);
         let line = &text[i..end];
-        out.push(&line[..line.iter().position(|&c| c == 0).unwrap_or(line.len())]);
         i = end;
         if i < text.len() && text[i] == b'\r' {
             i += 1;
@@ -188,42 +196,159 @@ fn lines(text: &[u8]) -> Vec<&[u8]> {
         } else if i < text.len() {
             i += 1;
         }
+        Some(cut_at_nul(line))
+    })
+}
+
+fn cut_at_nul(line: &[u8]) -> &[u8] {
+    &line[..memchr::memchr(0, line).unwrap_or(line.len())]
+}
+
+/// Text G-code read from a stream, split into exactly the lines [`lines`] gives for the whole
+/// text, one `\n`-ended piece at a time.
+///
+/// A piece (what ends at a `\n`, or at the end of the text) is split at its `\r`s; a `\r`
+/// right before the piece's `\n`, or ending the text, closes its line as `\r\n` does. At most
+/// [`crate::gcode::MAX_LINE`] + 1 bytes of a piece are read: a longer one is refused (as
+/// `poa convert` always refused it) before it is held, so memory stays at one line whatever
+/// the file holds.
+pub(super) struct LineSource<R> {
+    inner: R,
+    piece: Vec<u8>,
+    /// Index of the next line, as [`lines`] counts them (the scanner's `i`).
+    index: usize,
+    /// Pieces read so far: the number of the last, counting from 1 (the line number the
+    /// line-length refusal states, as for every other command).
+    number: u64,
+}
+
+impl<R: std::io::BufRead> LineSource<R> {
+    pub(super) fn new(inner: R) -> Self {
+        LineSource {
+            inner,
+            piece: Vec::new(),
+            index: 0,
+            number: 0,
+        }
     }
-    out
+
+    /// Reads the next piece and hands each of its lines, with its index, to `each`; `false`
+    /// once the text is over.
+    pub(super) fn piece(
+        &mut self,
+        mut each: impl FnMut(usize, &[u8]) -> Result<(), ConvertError>,
+    ) -> Result<bool, ConvertError> {
+        use std::io::{BufRead, Read};
+        let max = crate::gcode::MAX_LINE;
+        self.piece.clear();
+        let n = (&mut self.inner)
+            .take(max as u64 + 1)
+            .read_until(b'\n', &mut self.piece)
+            .map_err(ConvertError::Read)?;
+        if n == 0 {
+            return Ok(false);
+        }
+        self.number += 1;
+        let text = self.piece.strip_suffix(b"\n").unwrap_or(&self.piece);
+        if text.len() > max {
+            return Err(ConvertError::LineTooLong(self.number));
+        }
+        let text = text.strip_suffix(b"\r").unwrap_or(text);
+        for line in text.split(|&c| c == b'\r') {
+            each(self.index, cut_at_nul(line))?;
+            self.index += 1;
+        }
+        Ok(true)
+    }
 }
 
 fn find(hay: &[u8], needle: &[u8]) -> Option<usize> {
-    hay.windows(needle.len()).position(|w| w == needle)
+    memchr::memmem::find(hay, needle)
 }
 
 fn invalid(line: usize, what: &str) -> BgcodeError {
     BgcodeError::InvalidText(format!("line {}: {what}", line + 1))
 }
 
-/// Converts G-code text to binary G-code with the reference implementation's rules.
-///
-/// Long by design: one pass over the text that fills every block kind in file order; its cursor state is shared by all of them.
-pub fn from_ascii(text: &[u8], config: &BinarizeConfig) -> Result<Bgcode, BgcodeError> {
-    let all = lines(text);
-    let mut consumed = vec![false; all.len()];
-    let mut file_meta: Vec<(String, String)> = Vec::new();
-    let mut values: Vec<Option<String>> = vec![None; KEYS.len()];
-    let mut slicer: Vec<(String, String)> = Vec::new();
-    let mut json: Option<Vec<u8>> = None;
-    let mut in_config = false;
-    let mut in_json = false;
-    let mut thumbs: Vec<Block> = Vec::new();
-    let mut thumb: Option<(ThumbnailFormat, u16, u16, usize, Vec<u8>)> = None;
-    let mut producer_seen = false;
-    let lossy = |b: &[u8]| String::from_utf8_lossy(b).into_owned();
+/// Most bytes of metadata, thumbnails and slicer configuration a text may hold: PrusaSlicer
+/// writes a few hundred KiB; a text with more is made to exhaust memory, since all of it is
+/// held until the binary's first blocks are written (the bound [`super::stream::layout`]
+/// keeps for a binary file's blocks).
+const MAX_HELD: usize = 64 << 20;
 
-    for (i, raw) in all.iter().enumerate() {
+/// A thumbnail being read: format, width, height, the base64 length its header states, and
+/// the base64 text so far.
+type Thumb = (ThumbnailFormat, u16, u16, usize, Vec<u8>);
+
+/// The one-pass scanner of [`from_ascii`], line by line: it tells which lines are metadata
+/// (kept out of the G-code) and gathers them into the blocks that go before the G-code.
+///
+/// Input: every line of the text in order, with its index (as [`lines`] splits and counts
+/// them). Output: for each line, whether it was taken as metadata; at the end, the file,
+/// printer, thumbnail, print and slicer metadata blocks in file order. The decision for a line
+/// depends only on the lines before it, so two scanners fed the same text decide alike (the
+/// streaming conversion scans twice: once for the blocks, once to write the G-code). What it
+/// holds is bounded by [`MAX_HELD`].
+pub(super) struct AsciiScan {
+    config: BinarizeConfig,
+    file_meta: Vec<(String, String)>,
+    values: Vec<Option<String>>,
+    slicer: Vec<(String, String)>,
+    json: Option<Vec<u8>>,
+    in_config: bool,
+    in_json: bool,
+    thumbs: Vec<Block>,
+    thumb: Option<Thumb>,
+    producer_seen: bool,
+    /// Bytes gathered so far, for [`MAX_HELD`].
+    held: usize,
+}
+
+fn lossy(b: &[u8]) -> String {
+    String::from_utf8_lossy(b).into_owned()
+}
+
+impl AsciiScan {
+    pub(super) fn new(config: &BinarizeConfig) -> Self {
+        AsciiScan {
+            config: *config,
+            file_meta: Vec::new(),
+            values: vec![None; KEYS.len()],
+            slicer: Vec::new(),
+            json: None,
+            in_config: false,
+            in_json: false,
+            thumbs: Vec::new(),
+            thumb: None,
+            producer_seen: false,
+            held: 0,
+        }
+    }
+
+    /// Counts `n` more bytes gathered at line `i`; refuses past [`MAX_HELD`].
+    fn hold(&mut self, i: usize, n: usize) -> Result<(), BgcodeError> {
+        self.held += n;
+        if self.held > MAX_HELD {
+            return Err(BgcodeError::Limit(format!(
+                "line {}: the text's metadata (thumbnails, slicer configuration) passes {} MiB, far more than a slicer writes",
+                i + 1,
+                MAX_HELD >> 20
+            )));
+        }
+        Ok(())
+    }
+
+    /// Reads line `i` (`raw`, without its ending); true when it is metadata, which stays out
+    /// of the G-code.
+    ///
+    /// Long by design: the reference's rules in its order, each line going to the first kind
+    /// of block that claims it; the cursor state is shared by all of them.
+    pub(super) fn line(&mut self, i: usize, raw: &[u8]) -> Result<bool, BgcodeError> {
         let s = uncomment(raw);
         if s.is_empty() {
-            consumed[i] = true;
-            continue;
+            return Ok(true);
         }
-        if let Some((format, w, h, len, data)) = &mut thumb {
+        if let Some((format, w, h, len, data)) = &mut self.thumb {
             let tag = thumb_tag(*format);
             if s.starts_with(tag) && s[tag.len()..].trim_ascii() == b"end" {
                 if data.len() != *len {
@@ -231,7 +356,7 @@ pub fn from_ascii(text: &[u8], config: &BinarizeConfig) -> Result<Bgcode, Bgcode
                 }
                 let image =
                     base64_decode(data).ok_or_else(|| invalid(i, "bad base64 thumbnail"))?;
-                thumbs.push(Block::new(
+                let block = Block::new(
                     BlockKind::Thumbnail,
                     Compression::None,
                     BlockParams::Thumbnail {
@@ -240,13 +365,15 @@ pub fn from_ascii(text: &[u8], config: &BinarizeConfig) -> Result<Bgcode, Bgcode
                         height: *h,
                     },
                     image,
-                ));
-                thumb = None;
+                );
+                self.thumb = None;
+                self.hold(i, block.payload.len())?;
+                self.thumbs.push(block);
             } else {
                 data.extend_from_slice(s);
+                self.hold(i, s.len())?;
             }
-            consumed[i] = true;
-            continue;
+            return Ok(true);
         }
         if let Some(at) = find(s, b"generated by PrusaSlicer") {
             let rest = trim(&s[at + b"generated by PrusaSlicer".len()..]);
@@ -260,58 +387,57 @@ pub fn from_ascii(text: &[u8], config: &BinarizeConfig) -> Result<Bgcode, Bgcode
                 ),
                 None => (rest.clone(), None),
             };
-            file_meta.push(("Producer".into(), format!("PrusaSlicer {ver}")));
+            self.file_meta
+                .push(("Producer".into(), format!("PrusaSlicer {ver}")));
             if let Some(on) = on {
-                file_meta.push(("Produced on".into(), on));
+                self.file_meta.push(("Produced on".into(), on));
             }
-            producer_seen = true;
-            consumed[i] = true;
-            continue;
+            self.producer_seen = true;
+            self.hold(i, s.len())?;
+            return Ok(true);
         }
         if i < 5 {
             if let Some(at) = find(s, b"prepared by") {
                 let rest = trim(&s[at + b"prepared by".len()..]);
                 if !rest.is_empty() {
-                    file_meta.push(("Prepared by".into(), lossy(rest)));
+                    self.file_meta.push(("Prepared by".into(), lossy(rest)));
+                    self.hold(i, rest.len())?;
                 }
-                consumed[i] = true;
-                continue;
+                return Ok(true);
             }
         }
         if let Some(k) = KEYS.iter().position(|k| s.starts_with(k.as_bytes())) {
             if let Some((_, v)) = key_value(s).filter(|(_, v)| !v.is_empty()) {
-                if values[k].is_none() {
-                    values[k] = Some(lossy(v));
+                if self.values[k].is_none() {
+                    self.values[k] = Some(lossy(v));
+                    self.hold(i, v.len())?;
                 }
                 // A shared key in the config block also stays there as slicer metadata.
-                if !(in_config && shared(KEYS[k])) {
-                    consumed[i] = true;
-                    continue;
+                if !(self.in_config && shared(KEYS[k])) {
+                    return Ok(true);
                 }
             }
         }
         if s.starts_with(b"prusaslicer_config") {
             if let Some((_, v)) = key_value(s) {
                 if v == b"begin" {
-                    in_config = true;
-                    consumed[i] = true;
-                    continue;
+                    self.in_config = true;
+                    return Ok(true);
                 }
                 if v == b"end" {
-                    in_config = false;
-                    consumed[i] = true;
-                    continue;
+                    self.in_config = false;
+                    return Ok(true);
                 }
             }
         }
-        if in_config {
+        if self.in_config {
             let (k, v) = key_value(s).ok_or_else(|| invalid(i, "config line without '='"))?;
             if k.is_empty() {
                 return Err(invalid(i, "config line without a key"));
             }
-            slicer.push((lossy(k), lossy(v)));
-            consumed[i] = true;
-            continue;
+            self.slicer.push((lossy(k), lossy(v)));
+            self.hold(i, k.len() + v.len())?;
+            return Ok(true);
         }
         if let Some(format) = [
             ThumbnailFormat::Png,
@@ -334,105 +460,119 @@ pub fn from_ascii(text: &[u8], config: &BinarizeConfig) -> Result<Bgcode, Bgcode
             let parse = |t: &str| t.trim().parse::<u32>().ok().filter(|v| *v > 0);
             match (parse(w), parse(h), parse(len)) {
                 (Some(w), Some(h), Some(len)) if w <= 0xffff && h <= 0xffff => {
-                    thumb = Some((format, w as u16, h as u16, len as usize, Vec::new()));
+                    self.thumb = Some((format, w as u16, h as u16, len as usize, Vec::new()));
                 }
                 _ => return Err(invalid(i, "bad thumbnail header")),
             }
-            consumed[i] = true;
-            continue;
+            return Ok(true);
         }
         if s.starts_with(b"prusaslicer_json_config") {
             if let Some((_, v)) = key_value(s) {
                 if v == b"begin" || v == b"end" {
-                    in_json = v == b"begin";
-                    json.get_or_insert_with(Vec::new);
-                    consumed[i] = true;
-                    continue;
+                    self.in_json = v == b"begin";
+                    self.json.get_or_insert_with(Vec::new);
+                    return Ok(true);
                 }
             }
         }
-        if in_json {
-            json.get_or_insert_with(Vec::new).extend_from_slice(s);
-            consumed[i] = true;
-            continue;
+        if self.in_json {
+            self.json.get_or_insert_with(Vec::new).extend_from_slice(s);
+            self.hold(i, s.len())?;
+            return Ok(true);
         }
-    }
-    if thumb.is_some() {
-        return Err(BgcodeError::InvalidText(
-            "a thumbnail has no end line".into(),
-        ));
-    }
-    if !producer_seen {
-        return Err(BgcodeError::InvalidText(
-            "no \"; generated by PrusaSlicer\" line: only PrusaSlicer's text G-code converts to binary G-code".into(),
-        ));
+        Ok(false)
     }
 
-    let mut gcode = Vec::with_capacity(text.len());
-    for (line, _) in all.iter().zip(&consumed).filter(|(_, c)| !**c) {
-        gcode.extend_from_slice(line);
-        gcode.push(b'\n');
-    }
-
-    let ini = |pairs: &[(String, String)]| -> Vec<u8> {
-        let mut out = Vec::new();
-        for (k, v) in pairs {
-            out.extend_from_slice(k.as_bytes());
-            out.push(b'=');
-            out.extend_from_slice(v.as_bytes());
-            out.push(b'\n');
+    /// The blocks that go before the G-code, in file order: file metadata (when the text named
+    /// its producer), printer metadata, thumbnails, print metadata, slicer metadata (INI, then
+    /// JSON when the text had it). Refuses a text without PrusaSlicer's `generated by` line or
+    /// with a thumbnail left open.
+    pub(super) fn finish(self) -> Result<Vec<Block>, BgcodeError> {
+        if self.thumb.is_some() {
+            return Err(BgcodeError::InvalidText(
+                "a thumbnail has no end line".into(),
+            ));
         }
-        out
-    };
-    let ordered = |order: &[&str]| -> Vec<(String, String)> {
-        order
-            .iter()
-            .filter_map(|k| {
-                let i = KEYS.iter().position(|x| x == k)?;
-                values[i].clone().map(|v| (k.to_string(), v))
-            })
-            .collect()
-    };
-    let meta = |kind, compression, payload| {
-        Block::new(
-            kind,
-            compression,
-            BlockParams::Metadata(MetadataEncoding::Ini),
-            payload,
-        )
-    };
-    let mut blocks = Vec::new();
-    if !file_meta.is_empty() {
+        if !self.producer_seen {
+            return Err(BgcodeError::InvalidText(
+                "no \"; generated by PrusaSlicer\" line: only PrusaSlicer's text G-code converts to binary G-code".into(),
+            ));
+        }
+        let config = self.config;
+        let ini = |pairs: &[(String, String)]| -> Vec<u8> {
+            let mut out = Vec::new();
+            for (k, v) in pairs {
+                out.extend_from_slice(k.as_bytes());
+                out.push(b'=');
+                out.extend_from_slice(v.as_bytes());
+                out.push(b'\n');
+            }
+            out
+        };
+        let ordered = |order: &[&str]| -> Vec<(String, String)> {
+            order
+                .iter()
+                .filter_map(|k| {
+                    let i = KEYS.iter().position(|x| x == k)?;
+                    self.values[i].clone().map(|v| (k.to_string(), v))
+                })
+                .collect()
+        };
+        let meta = |kind, compression, payload| {
+            Block::new(
+                kind,
+                compression,
+                BlockParams::Metadata(MetadataEncoding::Ini),
+                payload,
+            )
+        };
+        let mut blocks = Vec::new();
+        if !self.file_meta.is_empty() {
+            blocks.push(meta(
+                BlockKind::FileMetadata,
+                config.file_metadata,
+                ini(&self.file_meta),
+            ));
+        }
         blocks.push(meta(
-            BlockKind::FileMetadata,
-            config.file_metadata,
-            ini(&file_meta),
+            BlockKind::PrinterMetadata,
+            config.printer_metadata,
+            ini(&ordered(&PRINTER_ORDER)),
         ));
-    }
-    blocks.push(meta(
-        BlockKind::PrinterMetadata,
-        config.printer_metadata,
-        ini(&ordered(&PRINTER_ORDER)),
-    ));
-    blocks.extend(thumbs);
-    blocks.push(meta(
-        BlockKind::PrintMetadata,
-        config.print_metadata,
-        ini(&ordered(&PRINT_ORDER)),
-    ));
-    blocks.push(meta(
-        BlockKind::SlicerMetadata,
-        config.slicer_metadata,
-        ini(&slicer),
-    ));
-    if let Some(j) = json {
-        blocks.push(Block::new(
+        blocks.extend(self.thumbs);
+        blocks.push(meta(
+            BlockKind::PrintMetadata,
+            config.print_metadata,
+            ini(&ordered(&PRINT_ORDER)),
+        ));
+        blocks.push(meta(
             BlockKind::SlicerMetadata,
             config.slicer_metadata,
-            BlockParams::Metadata(MetadataEncoding::Json),
-            j,
+            ini(&self.slicer),
         ));
+        if let Some(j) = self.json {
+            blocks.push(Block::new(
+                BlockKind::SlicerMetadata,
+                config.slicer_metadata,
+                BlockParams::Metadata(MetadataEncoding::Json),
+                j,
+            ));
+        }
+        Ok(blocks)
     }
+}
+
+/// Converts G-code text to binary G-code with the reference implementation's rules.
+pub fn from_ascii(text: &[u8], config: &BinarizeConfig) -> Result<Bgcode, BgcodeError> {
+    let mut scan = AsciiScan::new(config);
+    let mut gcode = Vec::with_capacity(text.len());
+    for (i, line) in lines(text).enumerate() {
+        if !scan.line(i, line)? {
+            gcode.extend_from_slice(line);
+            gcode.push(b'\n');
+        }
+    }
+    let mut blocks = scan.finish()?;
     for piece in super::split_gcode(&gcode) {
         blocks.push(Block::new(
             BlockKind::GCode,
@@ -490,4 +630,63 @@ fn base64_decode(data: &[u8]) -> Option<Vec<u8>> {
         out.extend_from_slice(&bytes[..3 - pad]);
     }
     Some(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The streamed splitter gives the whole-text splitter's lines, with the same indices,
+    /// for every mix of line ends, NULs and a missing final newline.
+    #[test]
+    fn line_source_splits_as_lines_does() {
+        let parts: [&[u8]; 9] = [
+            b"a", b"\n", b"\r", b"\r\n", b"\0", b"bc", b"\n\r", b";", b"",
+        ];
+        // Every text of up to five parts.
+        let mut texts: Vec<Vec<u8>> = vec![Vec::new()];
+        for _ in 0..5 {
+            let longer: Vec<Vec<u8>> = texts
+                .iter()
+                .flat_map(|t| parts.iter().map(move |p| [t.as_slice(), p].concat()))
+                .collect();
+            texts.extend(longer);
+            texts.sort();
+            texts.dedup();
+        }
+        for text in &texts {
+            let want: Vec<(usize, Vec<u8>)> = lines(text)
+                .enumerate()
+                .map(|(i, l)| (i, l.to_vec()))
+                .collect();
+            let mut got = Vec::new();
+            let mut source = LineSource::new(text.as_slice());
+            while source
+                .piece(|i, l| {
+                    got.push((i, l.to_vec()));
+                    Ok(())
+                })
+                .unwrap()
+            {}
+            assert_eq!(got, want, "{text:?}");
+        }
+    }
+
+    /// Metadata past the bound is refused with the line where it passed it, not held.
+    #[test]
+    fn what_the_scanner_holds_is_bounded() {
+        let mut scan = AsciiScan::new(&BinarizeConfig::prusaslicer());
+        assert!(scan.line(0, b"; prusaslicer_json_config = begin").unwrap());
+        let row = [b'x'; 1 << 20];
+        let mut refused = None;
+        for i in 1..100 {
+            if let Err(e) = scan.line(i, &row) {
+                refused = Some((i, e));
+                break;
+            }
+        }
+        let (i, e) = refused.expect("refused");
+        assert_eq!(i, (MAX_HELD >> 20) + 1);
+        assert!(matches!(e, BgcodeError::Limit(m) if m.contains("64 MiB")));
+    }
 }

@@ -7,15 +7,23 @@
 //! G-code text cut into blocks as it arrives, then the blocks after it, byte for byte what
 //! [`super::encode`] of [`super::with_gcode`] writes.
 //!
+//! The whole-file conversions run on the same pieces: [`to_ascii`] writes what
+//! [`super::Bgcode::to_ascii`] of the decoded file would, [`from_ascii`] what
+//! [`super::encode`] of [`super::from_ascii`] would, from a seekable file to any writer.
+//!
 //! Invariants: at most one block's data is held at a time (a block may not claim more than
-//! [`super::MAX_BLOCK_DECODED`]); every block is checked (CRC, decompression) when it is read;
-//! errors carry the block's index and file offset, as [`super::decode`] reports them.
+//! [`super::MAX_BLOCK_DECODED`]), besides the metadata and thumbnail blocks (at most
+//! [`MAX_OTHER_BYTES`] of them); every block is checked (CRC, decompression) when it is read;
+//! errors carry the block's index and file offset, as [`super::decode`] reports them. A text
+//! is read one line at a time (at most [`crate::gcode::MAX_LINE`] bytes).
 
 use std::io::{self, BufRead, Read, Seek, SeekFrom, Write};
 
+use super::ascii::{AsciiScan, BinarizeConfig, LineSource};
 use super::{
     decode, write_gcode_lines, Bgcode, BgcodeError, Block, BlockKind, BlockParams, ChecksumType,
-    Compression, GcodeEncoding, FILE_HEADER_LEN, MAX_BLOCK_DECODED, MAX_GCODE_BLOCK_TEXT,
+    Compression, GcodeEncoding, FILE_HEADER_LEN, MAGIC, MAX_BLOCK_DECODED, MAX_GCODE_BLOCK_TEXT,
+    VERSION,
 };
 
 /// A binary G-code file's blocks, without its G-code.
@@ -37,7 +45,7 @@ pub struct Layout {
 const MAX_BLOCKS: usize = 1 << 20;
 /// Most metadata and thumbnail blocks, and their decoded bytes, kept in memory.
 const MAX_OTHER_BLOCKS: usize = 4096;
-const MAX_OTHER_BYTES: usize = 64 << 20;
+pub const MAX_OTHER_BYTES: usize = 64 << 20;
 
 /// Moves an error [`decode`] reported for a one-block file to the block's place in the file.
 fn relocate(e: BgcodeError, index: usize, offset: u64) -> BgcodeError {
@@ -507,6 +515,144 @@ impl<W: Write> Write for GcodeWriter<'_, W> {
     }
 }
 
+/// Why a whole-file conversion ([`to_ascii`], [`from_ascii`]) stopped.
+#[derive(Debug)]
+pub enum ConvertError {
+    /// The input cannot be converted: a damaged binary file, or text that is not PrusaSlicer's
+    /// (what [`super::decode`] or [`super::from_ascii`] say of it).
+    Format(BgcodeError),
+    /// A text line longer than [`crate::gcode::MAX_LINE`]: its number, counting lines ended
+    /// by `\n` from 1.
+    LineTooLong(u64),
+    /// Reading the input failed.
+    Read(io::Error),
+    /// Writing the output failed.
+    Write(io::Error),
+}
+
+impl From<ReadError> for ConvertError {
+    fn from(e: ReadError) -> Self {
+        match e {
+            ReadError::Format(e) => ConvertError::Format(e),
+            ReadError::Io(e) => ConvertError::Read(e),
+        }
+    }
+}
+
+/// Writes the text G-code of the binary G-code file `r` (`size` bytes long) to `out`: byte for
+/// byte [`super::Bgcode::to_ascii`] of the decoded file, one G-code block in memory at a time.
+/// The metadata and thumbnail blocks are all read and checked before anything is written; a
+/// damaged G-code block is found as its turn comes, after the text before it was written.
+pub fn to_ascii<R: Read + Seek, W: Write>(
+    r: &mut R,
+    size: u64,
+    mut out: W,
+) -> Result<W, ConvertError> {
+    let layout = layout(r, size)?;
+    let mut text = Vec::new();
+    layout.other.ascii_head(&mut text);
+    out.write_all(&text).map_err(ConvertError::Write)?;
+    // GcodeReader's own loop, with the block's error kept whole (its Read impl can only
+    // give it as text) and reading told apart from writing.
+    for &(index, offset) in &layout.gcode_blocks {
+        let block = read_block(r, &layout.header, index, offset, size)?;
+        text.clear();
+        write_gcode_lines(&block.payload, &mut text);
+        out.write_all(&text).map_err(ConvertError::Write)?;
+    }
+    text.clear();
+    layout.other.ascii_tail(&mut text);
+    out.write_all(&text).map_err(ConvertError::Write)?;
+    out.flush().map_err(ConvertError::Write)?;
+    Ok(out)
+}
+
+/// How much of a text file is read at a time.
+const TEXT_BUFFER: usize = 256 * 1024;
+
+/// The lines of the text file `r` from its start, up to `size` bytes: a file that keeps
+/// growing is not read forever.
+fn text_lines<R: Read + Seek>(
+    r: &mut R,
+    size: u64,
+) -> Result<LineSource<io::BufReader<io::Take<&mut R>>>, ConvertError> {
+    r.seek(SeekFrom::Start(0)).map_err(ConvertError::Read)?;
+    Ok(LineSource::new(io::BufReader::with_capacity(
+        TEXT_BUFFER,
+        r.take(size),
+    )))
+}
+
+/// Writes the binary G-code of the PrusaSlicer text G-code file `r` (`size` bytes long) to
+/// `out`: byte for byte [`super::encode`] of [`super::from_ascii`] with `config`, in memory of
+/// one line, one block and the metadata.
+///
+/// Two passes over the file, because the binary starts with metadata the text states last
+/// (the print statistics): the first scans every line and builds the metadata and thumbnail
+/// blocks, the second scans again (the same rules, so the same lines are metadata) and sends
+/// the other lines through [`GcodeWriter`], which cuts blocks where [`super::from_ascii`]
+/// does. Every refusal (a line too long, text that is not PrusaSlicer's) comes from the first
+/// pass, before anything is written; a line too long anywhere is reported before what the
+/// scanner found wrong, as [`super::from_ascii`]'s callers always checked it first.
+pub fn from_ascii<R: Read + Seek, W: Write>(
+    r: &mut R,
+    size: u64,
+    config: &BinarizeConfig,
+    out: W,
+) -> Result<W, ConvertError> {
+    let mut lines = text_lines(r, size)?;
+    let mut scan = AsciiScan::new(config);
+    let mut refused = None;
+    while lines.piece(|i, line| {
+        if refused.is_none() {
+            if let Err(e) = scan.line(i, line) {
+                refused = Some(e);
+            }
+        }
+        Ok(())
+    })? {}
+    if let Some(e) = refused {
+        return Err(ConvertError::Format(e));
+    }
+    let blocks = scan.finish().map_err(ConvertError::Format)?;
+    drop(lines);
+
+    let mut header = [0u8; FILE_HEADER_LEN];
+    header[..4].copy_from_slice(MAGIC);
+    header[4..8].copy_from_slice(&VERSION.to_le_bytes());
+    header[8..].copy_from_slice(&config.checksum.id().to_le_bytes());
+    let layout = Layout {
+        header,
+        gcode_at: blocks.len(),
+        other: Bgcode {
+            version: VERSION,
+            checksum: config.checksum,
+            blocks,
+        },
+        gcode_format: Some((config.gcode, BlockParams::GCode(config.gcode_encoding))),
+        gcode_blocks: Vec::new(),
+    };
+
+    let mut lines = text_lines(r, size)?;
+    let mut scan = AsciiScan::new(config);
+    let mut writer = GcodeWriter::new(out, &layout).map_err(ConvertError::Write)?;
+    // Lines gathered to a block's worth before the writer splits them again.
+    let mut gcode = Vec::with_capacity(2 * MAX_GCODE_BLOCK_TEXT);
+    while lines.piece(|i, line| {
+        if !scan.line(i, line).map_err(ConvertError::Format)? {
+            gcode.extend_from_slice(line);
+            gcode.push(b'\n');
+            if gcode.len() >= MAX_GCODE_BLOCK_TEXT {
+                writer.write_all(&gcode).map_err(ConvertError::Write)?;
+                gcode.clear();
+            }
+        }
+        Ok(())
+    })? {}
+    writer.write_all(&gcode).map_err(ConvertError::Write)?;
+    writer.finish().map_err(ConvertError::Write)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -594,5 +740,108 @@ mod tests {
             layout(&mut io::Cursor::new(&bomb), size),
             Err(ReadError::Format(BgcodeError::BlockTooLarge { .. }))
         ));
+    }
+
+    /// A PrusaSlicer-like text with every kind of line the converter tells apart, and line
+    /// ends of every kind: `\r\n`, `\r` alone, a NUL cutting a line, no final newline.
+    fn prusa_like_text() -> Vec<u8> {
+        let mut t = Vec::new();
+        t.extend_from_slice(b"; generated by PrusaSlicer 2.7.0 on 2024-01-02 at 10:11:12 UTC\r\n");
+        t.extend_from_slice(b"; prepared by someone\n;\n\n");
+        // A 4 x 4 thumbnail of 36 bytes: 48 base64 characters over two rows.
+        let image: Vec<u8> = (0..36u8).collect();
+        let b64 = super::super::base64(&image);
+        t.extend_from_slice(format!("; thumbnail begin 4x4 {}\r\n", b64.len()).as_bytes());
+        t.extend_from_slice(b"; ");
+        t.extend_from_slice(&b64[..30]);
+        t.extend_from_slice(b"\r; ");
+        t.extend_from_slice(&b64[30..]);
+        t.extend_from_slice(b"\n; thumbnail end\n;\n\n");
+        t.extend_from_slice(b"M73 P0 R5\nG90\r\nM83\rG1 Z0.2 F720\n");
+        for i in 0..6000 {
+            // Enough lines for several 64 KiB blocks, with every line end.
+            let end: &[u8] = [b"\n".as_slice(), b"\r\n", b"\r"][i % 3];
+            t.extend_from_slice(
+                format!("G1 X{} Y{} E0.0123 ; move {i}", i % 200, i % 37).as_bytes(),
+            );
+            t.extend_from_slice(end);
+        }
+        t.extend_from_slice(b"M117 cut\0 here, the rest is dropped\n");
+        t.extend_from_slice(b"; filament used [mm] = 1234.5\r\n; printer_model = MK4\n");
+        t.extend_from_slice(b"; estimated printing time (normal mode) = 1h 2m\n\n");
+        t.extend_from_slice(b"; prusaslicer_config = begin\r\n; layer_height = 0.2\n");
+        t.extend_from_slice(b"; nozzle_diameter = 0.4\r; printer_model = MK4\n");
+        t.extend_from_slice(b"; prusaslicer_config = end");
+        t
+    }
+
+    #[test]
+    fn streamed_conversions_write_what_the_whole_file_ones_do() {
+        let text = prusa_like_text();
+        for config in [BinarizeConfig::prusaslicer(), {
+            let mut c = BinarizeConfig::prusaslicer();
+            c.gcode = Compression::Deflate;
+            c.gcode_encoding = GcodeEncoding::None;
+            c.checksum = ChecksumType::None;
+            c
+        }] {
+            let whole = super::super::from_ascii(&text, &config).unwrap();
+            assert!(whole.blocks.iter().any(|b| b.kind == BlockKind::Thumbnail));
+            assert!(
+                whole
+                    .blocks
+                    .iter()
+                    .filter(|b| b.kind == BlockKind::GCode)
+                    .count()
+                    > 2
+            );
+            let whole = super::super::encode(&whole);
+            let size = text.len() as u64;
+            let streamed =
+                from_ascii(&mut io::Cursor::new(&text), size, &config, Vec::new()).unwrap();
+            assert!(streamed == whole, "text to binary");
+
+            let ascii = decode(&whole).unwrap().to_ascii();
+            let size = whole.len() as u64;
+            let streamed = to_ascii(&mut io::Cursor::new(&whole), size, Vec::new()).unwrap();
+            assert!(streamed == ascii, "binary to text");
+        }
+    }
+
+    #[test]
+    fn streamed_text_is_refused_as_the_whole_text_is() {
+        let config = BinarizeConfig::prusaslicer();
+        let convert =
+            |t: &[u8]| from_ascii(&mut io::Cursor::new(t), t.len() as u64, &config, Vec::new());
+        let max = crate::gcode::MAX_LINE;
+        // A line of the longest length (its '\r' counted, as ever) passes; one byte more is
+        // refused with its number (counting lines ended by '\n'), also after a line the
+        // scanner refuses.
+        let mut t = prusa_like_text();
+        t.extend_from_slice(b"\n; ");
+        t.extend_from_slice(&vec![b'x'; max - 3]);
+        t.extend_from_slice(b"\r\n");
+        assert!(convert(&t).is_ok());
+        let lines = t.iter().filter(|&&c| c == b'\n').count() as u64;
+        let mut bad = b"; generated by PrusaSlicer 2.7.0\n; thumbnail begin 1x1\n".to_vec();
+        bad.extend_from_slice(&t[..t.len() - 2]);
+        bad.extend_from_slice(b"yz");
+        assert!(matches!(convert(&bad), Err(ConvertError::LineTooLong(n)) if n == lines + 2));
+        // Without the long line, the scanner's refusal is the whole-text one.
+        let bad = &bad[..bad.len() - max];
+        let (Err(ConvertError::Format(e)), Err(whole)) =
+            (convert(bad), super::super::from_ascii(bad, &config))
+        else {
+            panic!("not refused");
+        };
+        assert_eq!(e, whole);
+        // Text that is not PrusaSlicer's.
+        let (Err(ConvertError::Format(e)), Err(whole)) = (
+            convert(b"G1 X1\r\n"),
+            super::super::from_ascii(b"G1 X1\r\n", &config),
+        ) else {
+            panic!("not refused");
+        };
+        assert_eq!(e, whole);
     }
 }
