@@ -1552,58 +1552,6 @@ mod tests {
         }
     }
 
-    /// A thin strip planned with `keep_outline` keeps its perimeter where the slicer put it
-    /// (half a width inside the outline, no inset); without, it is moved in, onto the layer
-    /// below.
-    #[test]
-    fn a_thin_ring_s_perimeter_stays_where_sliced_when_asked() {
-        let widths = Widths {
-            loop_width: W,
-            perimeter_width: W,
-            tolerance: W / 2.0,
-        };
-        let o = 0.75 * W;
-        let below = mp(vec![rect(0.0, 0.0, 10.0, 10.0)]);
-        let area = mp(vec![rect(0.0, 0.0, 10.0 + o, 10.0)]);
-        let zone = difference(&area, &below);
-        let sliced_at = 10.0 + o - W / 2.0;
-        // The perimeter's place along the strip's long side, away from its ends.
-        let perimeter_x = |keep_outline: bool| {
-            let plan = plan(
-                &region(zone.0[0].clone(), &below),
-                &below,
-                &area,
-                &Others {
-                    keep_outline,
-                    ..Others::default()
-                },
-                widths,
-                &PoaSettings::default(),
-                [0.0, 0.0],
-            );
-            let xs: Vec<f64> = plan
-                .strands
-                .iter()
-                .filter(|s| s.kind == StrandKind::Perimeter)
-                .flat_map(|s| samples(&s.points, 0.05))
-                .filter(|p| p[1] > 2.0 && p[1] < 8.0 && p[0] > 9.5)
-                .map(|p| p[0])
-                .collect();
-            assert!(!xs.is_empty(), "no perimeter along the strip");
-            xs.iter()
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &x| {
-                    (lo.min(x), hi.max(x))
-                })
-        };
-        let (lo, hi) = perimeter_x(true);
-        assert!(
-            (lo - sliced_at).abs() < 0.01 && (hi - sliced_at).abs() < 0.01,
-            "kept at {lo:.3}..{hi:.3}, sliced at {sliced_at:.3}"
-        );
-        let (_, hi) = perimeter_x(false);
-        assert!(hi < sliced_at - 0.05, "moved to {hi:.3} only");
-    }
-
     #[test]
     fn thin_sliver() {
         check(
