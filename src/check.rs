@@ -645,19 +645,6 @@ pub fn in_air_within(
     check_within(below, &[], layer, filament_area, &opts, false, Some(window)).in_air_mm
 }
 
-/// In-air and bridged lengths (mm) of the strands of `layer` that come within `window`, as
-/// [`check_layer`] judges them.
-pub fn unsupported_within(
-    below: &[&Layer],
-    layer: &Layer,
-    filament_area: f64,
-    window: ([f64; 2], [f64; 2]),
-) -> (f64, f64) {
-    let opts = CheckOptions::default();
-    let c = check_within(below, &[], layer, filament_area, &opts, false, Some(window));
-    (c.in_air_mm, c.bridged_mm)
-}
-
 /// Whether the box `a` meets the box `b` grown by `m`.
 fn boxes_meet(a: ([f64; 2], [f64; 2]), b: ([f64; 2], [f64; 2]), m: f64) -> bool {
     a.0[0] <= b.1[0] + m && a.1[0] >= b.0[0] - m && a.0[1] <= b.1[1] + m && a.1[1] >= b.0[1] - m

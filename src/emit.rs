@@ -1783,7 +1783,6 @@ impl<'a> PoaPass<'a> {
         area: &MultiPolygon<f64>,
         left: &Chosen<'_>,
         chosen: &Chosen<'_>,
-        keep_outline: bool,
     ) -> Vec<RegionRewrite> {
         let layer = &d.layer;
         let start = layer
@@ -1932,10 +1931,7 @@ impl<'a> PoaPass<'a> {
                         break;
                     }
                 }
-                let mut o = crate::poa::Others {
-                    keep_outline,
-                    ..Default::default()
-                };
+                let mut o = crate::poa::Others::default();
                 for ((fid, f), joined) in left.iter().zip(joined) {
                     if joined {
                         o.absorb.0.push(f.polygon.clone());
@@ -2051,82 +2047,10 @@ impl PoaPass<'_> {
         };
         let hanging = self.hanging(&d.layer, regions);
         let (chosen, left) = self.choose(d, regions, above_rewrite, &hanging);
-        let layer = &d.layer;
-        let next = above.filter(|a| a.index == layer.index + 1 && a.on_previous());
-        let mark = self.report.skipped.len();
-        let mut attempt = self.attempt(d, area(), &left, &chosen, next, above_rewrite, false);
-        // A thin ring's perimeter moved onto the layer below moves the outline the layer above
-        // was sliced to stand on. Where the layer above stops growing outward (the crown of a
-        // tilted ring, the crests of a wavy underside) it then stands bridged on the moved
-        // perimeter (a sine-shaped shelf's first solid layer: 1.0 -> 17.4 mm bridged): the
-        // layer is planned again with the perimeters where the slicer put them, and that plan
-        // is taken when the two layers fare better on it.
-        if let Some(next) = next.filter(|_| attempt.moves_outline) {
-            let ((air, bridged), (air_after, bridged_after)) = self
-                .above_on(layer, &attempt, next)
-                .unwrap_or(((0.0, 0.0), (0.0, 0.0)));
-            let (before, after) = (air + bridged, air_after + bridged_after);
-            // Only where the layer above stands on this one, as sliced and as rewritten, with
-            // nothing of it in air: where it hangs in air on the rewrite it is found to
-            // overhang it and planned again on it (a bowl's rim: each moved perimeter makes
-            // the next layer a ring of its own for a few layers, each held by its own plan).
-            if air.max(air_after) <= CROWN_HELD && after > before + ABOVE_WORSE {
-                let first_skipped = self.report.skipped.split_off(mark);
-                let second =
-                    self.attempt(d, area(), &left, &chosen, Some(next), above_rewrite, true);
-                let first_cost = self.two_layers(layer, &attempt, next);
-                let second_cost = self.two_layers(layer, &second, next);
-                let sliced_cost = self.as_sliced(layer, &attempt, next);
-                if second_cost < first_cost.min(sliced_cost) {
-                    attempt = second;
-                } else if sliced_cost < first_cost {
-                    // The layer goes out as sliced.
-                    self.report.skipped.truncate(mark);
-                    for r in &attempt.rewrites {
-                        self.report.skipped.push(SkippedRegion {
-                            region: r.id,
-                            layer: layer.index + 1,
-                            kind: r.kind,
-                            reason: format!(
-                                "the layer above stands on the perimeter as sliced ({before:.1} mm in air or bridged; {after:.1} on it moved)"
-                            ),
-                        });
-                    }
-                    attempt.refused = true;
-                } else {
-                    self.report.skipped.truncate(mark);
-                    self.report.skipped.extend(first_skipped);
-                }
-            }
-        }
-        let rewritten = self.take(layer, area(), attempt);
-        self.limits.track_limits(&layer.raw);
-        self.note_wall_width(layer);
-        Ok(rewritten)
-    }
-
-    /// Plans, writes and judges the chosen regions of `d`'s layer (with `next`, the layer
-    /// printed next when it rests on this one), the thin rings' perimeters left where the
-    /// slicer put them when `keep_outline`. Only the report changes: [`PoaPass::take`] makes
-    /// the attempt the layer's rewrite.
-    ///
-    /// Long by design: the steps of one rewrite in order (plan, hold the slicer's ends, write,
-    /// read back, time, judge), each reading what the one before made.
-    #[allow(clippy::too_many_arguments)]
-    fn attempt(
-        &mut self,
-        d: &crate::geometry::Detected,
-        area: &MultiPolygon<f64>,
-        left: &Chosen<'_>,
-        chosen: &Chosen<'_>,
-        next: Option<&Layer>,
-        above_rewrite: bool,
-        keep_outline: bool,
-    ) -> Attempt {
         let rewrites = if chosen.is_empty() {
             Vec::new()
         } else {
-            self.plan(d, area, left, chosen, keep_outline)
+            self.plan(d, area(), &left, &chosen)
         };
         let layer = &d.layer;
         let below = resting_on(&self.below_layers, layer);
@@ -2165,160 +2089,9 @@ impl PoaPass<'_> {
         // region's loops do (buffering a hook's 97 overlapping rungs cost more than the rest
         // of a plate of four).
         let moves_outline = rewrites.iter().any(|r| r.plan.with_perimeter);
+        self.wide_below = None;
         let zones =
             crate::geometry::union_all(&rewrites.iter().map(|r| &r.plan.zone).collect::<Vec<_>>());
-        let mut attempt = Attempt {
-            rewrites,
-            zones,
-            moves_outline,
-            refused: false,
-            written: None,
-        };
-        if attempt.rewrites.is_empty() {
-            return attempt;
-        }
-        let rewrites = &attempt.rewrites;
-        let (bytes, stats) = rewrite_layer(
-            layer,
-            &below,
-            next,
-            rewrites,
-            &self.motion,
-            &self.opts.settings,
-        );
-        // The layer read back, and the estimator's time for it as rewritten and as
-        // sliced, side by side: on a plate's first floating layer each is a few
-        // milliseconds of one core.
-        let (back, planned) = rayon::join(
-            || reread(layer, &bytes, &self.config),
-            || {
-                let (new, old) = rayon::join(
-                    || layer_time(&self.limits, layer, &bytes),
-                    || layer_time(&self.limits, layer, &layer.raw),
-                );
-                new - old
-            },
-        );
-        // Judged where a plan moves the outline (a gradual overhang's, or one on a layer
-        // whose own support moved), and where the zones are small: the wide plans of a
-        // first floating layer grow from the wall below and cost a plate's worth of
-        // samples to judge, while small ones cost little and can do worse than the slicer
-        // (a lettering's strokes on a wall, outer wall first: 0 -> 2.3 mm in air).
-        let judged = above_rewrite
-            || rewrites
-                .iter()
-                .any(|r| r.plan.with_perimeter || r.plan.ladder)
-            || rewrites
-                .iter()
-                .map(|r| geo::Area::unsigned_area(&r.plan.zone))
-                .sum::<f64>()
-                < JUDGED_AREA;
-        if let Some(worse) = back.as_ref().filter(|_| judged).and_then(|b| {
-            let zones: Vec<&MultiPolygon<f64>> = rewrites.iter().map(|r| &r.plan.zone).collect();
-            self.worse_in_air(layer, &below, b, &zones)
-        }) {
-            // Never worse than the slicer: the layer goes out as sliced.
-            for r in rewrites {
-                self.report.skipped.push(SkippedRegion {
-                    region: r.id,
-                    layer: layer.index + 1,
-                    kind: r.kind,
-                    reason: format!(
-                        "rewritten, the layer would print {:.1} mm in air, {:.1} as sliced",
-                        worse.1, worse.0
-                    ),
-                });
-            }
-            attempt.refused = true;
-            return attempt;
-        }
-        attempt.written = Some(Written {
-            bytes,
-            stats,
-            planned,
-            back,
-        });
-        attempt
-    }
-
-    /// What the layer printed next (`next`) leaves in air and bridged (mm, by the deposition
-    /// check, near the attempt's zones) standing on `layer` as sliced, and standing on it as
-    /// the attempt rewrote it.
-    fn above_on(
-        &self,
-        layer: &Layer,
-        attempt: &Attempt,
-        next: &Layer,
-    ) -> Option<((f64, f64), (f64, f64))> {
-        let window = self.near_zones(attempt)?;
-        let back = attempt.written.as_ref()?.back.as_ref()?;
-        let fa = self.motion.filament_area;
-        Some((
-            crate::check::unsupported_within(&[layer], next, fa, window),
-            crate::check::unsupported_within(&[back], next, fa, window),
-        ))
-    }
-
-    /// What `layer` as sliced and the layer printed next on it leave in air or bridged (mm,
-    /// near the attempt's zones).
-    fn as_sliced(&self, layer: &Layer, attempt: &Attempt, next: &Layer) -> f64 {
-        let Some(window) = self.near_zones(attempt) else {
-            return f64::INFINITY;
-        };
-        let fa = self.motion.filament_area;
-        let below = resting_on(&self.below_layers, layer);
-        let (air, bridged) = crate::check::unsupported_within(&below, layer, fa, window);
-        let (air_next, bridged_next) = crate::check::unsupported_within(&[layer], next, fa, window);
-        air + bridged + air_next + bridged_next
-    }
-
-    /// What the attempt leaves in air or bridged (mm, near its zones) on its layer and on the
-    /// layer printed next; infinite when it rewrites nothing.
-    fn two_layers(&self, layer: &Layer, attempt: &Attempt, next: &Layer) -> f64 {
-        let (Some(window), Some(back)) = (
-            self.near_zones(attempt),
-            attempt.written.as_ref().and_then(|w| w.back.as_ref()),
-        ) else {
-            return f64::INFINITY;
-        };
-        let fa = self.motion.filament_area;
-        let below = resting_on(&self.below_layers, layer);
-        let (air, bridged) = crate::check::unsupported_within(&below, back, fa, window);
-        let (air_next, bridged_next) = crate::check::unsupported_within(&[back], next, fa, window);
-        air + bridged + air_next + bridged_next
-    }
-
-    /// The box round an attempt's zones that judging it looks at.
-    fn near_zones(&self, attempt: &Attempt) -> Option<([f64; 2], [f64; 2])> {
-        use geo::BoundingRect;
-        window_round(
-            attempt.zones.0.iter().filter_map(|p| p.bounding_rect()),
-            JUDGE_REACH,
-        )
-    }
-
-    /// Makes `attempt` the layer's rewrite: what the layer above is planned on, the time
-    /// added, the layer as read back for the next layer's judging. The layer's new bytes, or
-    /// `None` when it goes out as sliced.
-    fn take(
-        &mut self,
-        layer: &Layer,
-        area: &MultiPolygon<f64>,
-        attempt: Attempt,
-    ) -> Option<Vec<u8>> {
-        let Attempt {
-            rewrites,
-            zones,
-            moves_outline,
-            refused,
-            written,
-        } = attempt;
-        self.wide_below = None;
-        if refused {
-            self.rewritten_below = None;
-            self.reread = None;
-            return None;
-        }
         self.rewritten_below = if !moves_outline {
             None
         } else {
@@ -2328,87 +2101,117 @@ impl PoaPass<'_> {
                 .map(|s| (&s.points[..], s.width));
             Some((
                 layer.index,
-                crate::geometry::rewritten_area(area, &zones, strands),
+                crate::geometry::rewritten_area(area(), &zones, strands),
             ))
         };
-        let Written {
-            bytes,
-            stats,
-            planned,
-            back,
-        } = written?;
-        self.account(planned, stats);
-        self.reread = back;
-        // A layer whose only rewrites are ladders prints the strips the slicer printed:
-        // the layer above is planned on it as detected.
-        if !moves_outline && rewrites.iter().any(|r| !r.plan.ladder) {
-            self.wide_below = Some(WideBelow {
-                index: layer.index,
-                area: area.clone(),
-                zones: zones.clone(),
-                strands: rewrites
+        let rewritten = if rewrites.is_empty() {
+            None
+        } else {
+            let (bytes, stats) = rewrite_layer(
+                layer,
+                &below,
+                above.filter(|a| a.index == layer.index + 1 && a.on_previous()),
+                &rewrites,
+                &self.motion,
+                &self.opts.settings,
+            );
+            // The layer read back, and the estimator's time for it as rewritten and as
+            // sliced, side by side: on a plate's first floating layer each is a few
+            // milliseconds of one core.
+            let (back, planned) = rayon::join(
+                || reread(layer, &bytes, &self.config),
+                || {
+                    let (new, old) = rayon::join(
+                        || layer_time(&self.limits, layer, &bytes),
+                        || layer_time(&self.limits, layer, &layer.raw),
+                    );
+                    new - old
+                },
+            );
+            // Judged where a plan moves the outline (a gradual overhang's, or one on a layer
+            // whose own support moved), and where the zones are small: the wide plans of a
+            // first floating layer grow from the wall below and cost a plate's worth of
+            // samples to judge, while small ones cost little and can do worse than the slicer
+            // (a lettering's strokes on a wall, outer wall first: 0 -> 2.3 mm in air).
+            let judged = above_rewrite
+                || rewrites
                     .iter()
-                    .flat_map(|r| r.plan.strands.iter())
-                    .map(|s| (s.points.clone(), s.width))
-                    .collect(),
-            });
-        }
-        // The layer above is planned on what this layer prints as written: the area
-        // made from the plan alone keeps, in places, the slicer's perimeter that the
-        // splice took out (an edge a loop above then grew from, in air).
-        if let (Some((i, below_area)), Some(r)) = (&self.rewritten_below, &self.reread) {
-            if *i == layer.index {
-                // Away from the zones the layer is the slicer's: its area as detected
-                // there (read back, strands cut at a zone's edge can split the infill's
-                // outline into pockets the hole rule leaves open, and the layer above
-                // found a honeycomb's cells over air, layer after layer).
-                let away = crate::geometry::difference(
-                    area,
-                    &crate::geometry::margin(&zones, AWAY_FROM_ZONES),
-                );
-                let printed = crate::geometry::union(
-                    &crate::geometry::printed_area(r, &self.opts.detect.area),
-                    &away,
-                );
-                let rewritten = crate::geometry::intersection(
-                    below_area,
-                    &crate::geometry::offset(&printed, REREAD_SLACK),
-                );
-                self.rewritten_below = Some((*i, rewritten));
+                    .any(|r| r.plan.with_perimeter || r.plan.ladder)
+                || rewrites
+                    .iter()
+                    .map(|r| geo::Area::unsigned_area(&r.plan.zone))
+                    .sum::<f64>()
+                    < JUDGED_AREA;
+            if let Some(worse) = back.as_ref().filter(|_| judged).and_then(|b| {
+                let zones: Vec<&MultiPolygon<f64>> =
+                    rewrites.iter().map(|r| &r.plan.zone).collect();
+                self.worse_in_air(layer, &below, b, &zones)
+            }) {
+                // Never worse than the slicer: the layer goes out as sliced.
+                for r in &rewrites {
+                    self.report.skipped.push(SkippedRegion {
+                        region: r.id,
+                        layer: layer.index + 1,
+                        kind: r.kind,
+                        reason: format!(
+                            "rewritten, the layer would print {:.1} mm in air, {:.1} as sliced",
+                            worse.1, worse.0
+                        ),
+                    });
+                }
+                self.rewritten_below = None;
+                self.reread = None;
+                self.limits.track_limits(&layer.raw);
+                self.note_wall_width(layer);
+                return Ok(None);
             }
-        }
-        Some(bytes)
+            self.account(planned, stats);
+            self.reread = back;
+            // A layer whose only rewrites are ladders prints the strips the slicer printed:
+            // the layer above is planned on it as detected.
+            if !moves_outline && rewrites.iter().any(|r| !r.plan.ladder) {
+                self.wide_below = Some(WideBelow {
+                    index: layer.index,
+                    area: area().clone().into_owned(),
+                    zones: zones.clone(),
+                    strands: rewrites
+                        .iter()
+                        .flat_map(|r| r.plan.strands.iter())
+                        .map(|s| (s.points.clone(), s.width))
+                        .collect(),
+                });
+            }
+            // The layer above is planned on what this layer prints as written: the area
+            // made from the plan alone keeps, in places, the slicer's perimeter that the
+            // splice took out (an edge a loop above then grew from, in air).
+            if let (Some((i, below_area)), Some(r)) = (&self.rewritten_below, &self.reread) {
+                if *i == layer.index {
+                    // Away from the zones the layer is the slicer's: its area as detected
+                    // there (read back, strands cut at a zone's edge can split the infill's
+                    // outline into pockets the hole rule leaves open, and the layer above
+                    // found a honeycomb's cells over air, layer after layer).
+                    let away = crate::geometry::difference(
+                        area(),
+                        &crate::geometry::margin(&zones, AWAY_FROM_ZONES),
+                    );
+                    let printed = crate::geometry::union(
+                        &crate::geometry::printed_area(r, &self.opts.detect.area),
+                        &away,
+                    );
+                    let rewritten = crate::geometry::intersection(
+                        below_area,
+                        &crate::geometry::offset(&printed, REREAD_SLACK),
+                    );
+                    self.rewritten_below = Some((*i, rewritten));
+                }
+            }
+            Some(bytes)
+        };
+        self.limits.track_limits(&layer.raw);
+        self.note_wall_width(layer);
+        Ok(rewritten)
     }
 }
-
-/// A layer's rewrite, made but not yet taken ([`PoaPass::attempt`]).
-struct Attempt {
-    rewrites: Vec<RegionRewrite>,
-    /// The union of the rewrites' zones.
-    zones: MultiPolygon<f64>,
-    /// Whether a plan moves the outline (a thin ring's perimeter).
-    moves_outline: bool,
-    /// The judge found the layer worse in air as rewritten: it goes out as sliced.
-    refused: bool,
-    /// The layer as written; `None` when nothing is rewritten or the judge refused it.
-    written: Option<Written>,
-}
-
-/// A rewritten layer's bytes, what they changed, the time they add (s) and the layer read
-/// back from them.
-struct Written {
-    bytes: Vec<u8>,
-    stats: Vec<RewriteStats>,
-    planned: f64,
-    back: Option<Layer>,
-}
-
-/// How much worse (mm in air and bridged) the layer printed next may stand on a rewritten
-/// layer than on the layer as sliced before the layer is planned again, perimeters kept.
-const ABOVE_WORSE: f64 = 1.0;
-/// Most the layer printed next may leave in air (mm) on a layer as sliced, near its rewrites,
-/// for it to count as standing on it (not planned again there).
-const CROWN_HELD: f64 = 1.0;
 
 /// Total zone area (mm2) of a layer's rewrites under which the rewritten layer is always
 /// judged against the layer as sliced (re-read and checked near the zones).

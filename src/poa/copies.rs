@@ -173,7 +173,7 @@ fn translation(a: &Surroundings<'_>, b: &Surroundings<'_>) -> Option<[f64; 2]> {
         (None, None) => [b.corner[0] - a.corner[0], b.corner[1] - a.corner[1]],
         _ => return None,
     };
-    let plain = |o: &Others| o.absorb.0.is_empty() && !o.keep_outline;
+    let plain = |o: &Others| o.absorb.0.is_empty();
     let windows = match (&a.cut, &b.cut) {
         (None, None) => same_shapes(&a.area, &b.area, t) && same_shapes(&a.below, &b.below, t),
         (Some(x), Some(y)) => {

@@ -188,9 +188,6 @@ pub struct Others {
     /// walls round a slot in an overhang, which Cura prints apart when the outer wall goes
     /// first, were left floating and the layer above hung over the slot).
     pub absorb: MultiPolygon<f64>,
-    /// A thin ring's perimeter stays where the slicer put it (the layer above was sliced to
-    /// stand on it there): no inset, not moved onto the layer below.
-    pub keep_outline: bool,
 }
 
 impl Default for Others {
@@ -198,7 +195,6 @@ impl Default for Others {
         Others {
             keep_out: MultiPolygon::new(Vec::new()),
             absorb: MultiPolygon::new(Vec::new()),
-            keep_outline: false,
         }
     }
 }
@@ -343,9 +339,7 @@ pub(super) fn plan_in(
     let round = we / 2.0;
     let mut perimeter_area = offset(&offset(&area_loc, -(we / 2.0 + inset + round)), round);
     let front = offset(below_loc, step - w / 2.0);
-    if thin && others.keep_outline {
-        perimeter_area = offset(&offset(&area_loc, -(we / 2.0 + round)), round);
-    } else if thin {
+    if thin {
         // Where the perimeter is within an eighth of a width of biting like loop 1, it is
         // moved there: a marginal slope (60 degrees at 0.2 mm) then rests on the layer below
         // instead of hanging a tenth of a millimetre past it.
