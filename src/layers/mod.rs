@@ -533,8 +533,6 @@ impl<R: BufRead> LayerReader<R> {
 /// times a busy layer of a real plate (a 16-part plate averages 4 500), and what keeps a
 /// layer's model and its deposition check within a few hundred megabytes.
 const MAX_LAYER_MOVES: usize = 4_000_000;
-/// Segments a new strand has room for before its first reallocation.
-const PATH_CAPACITY: usize = 7;
 
 impl State {
     fn new(options: ReaderOptions) -> Self {
@@ -1033,14 +1031,9 @@ impl State {
             z: m.to[2],
             object: self.object,
             tool: self.machine.tool,
-            // Most strands run to several segments: start past the first doublings.
-            points: {
-                let mut v = Vec::with_capacity(PATH_CAPACITY + 1);
-                v.push(start);
-                v
-            },
-            seg_line: Vec::with_capacity(PATH_CAPACITY),
-            seg_e: Vec::with_capacity(PATH_CAPACITY),
+            points: vec![start],
+            seg_line: Vec::new(),
+            seg_e: Vec::new(),
             feed: m.feed,
         });
         if m.arc.is_none() {
