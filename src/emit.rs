@@ -1299,7 +1299,7 @@ const HANGING_BRIDGE: f64 = 1.0;
 fn window_round(
     boxes: impl Iterator<Item = geo::Rect<f64>>,
     m: f64,
-) -> Option<([f64; 2], [f64; 2])> {
+) -> Option<Window> {
     boxes
         .map(|b| {
             (
@@ -1726,29 +1726,30 @@ impl<'a> PoaPass<'a> {
 
     /// `Some((as sliced, as rewritten))` in-air lengths (mm) when the deposition check finds
     /// the layer as rewritten (`back`) more than [`WORSE_IN_AIR`] mm farther in air than as
-    /// sliced, over the layers it rests on as printed.
+    /// sliced, over the layers it rests on as printed. `sliced` is the window the layer was
+    /// checked in as sliced, and that check.
+    ///
+    /// Only near the regions: a plate-wide layer costs as much to judge as its region search.
+    /// The window is the box round the planned zones grown by the longest bridge the check
+    /// counts: the slicer's strands cut at a zone's edge (or trimmed back to what holds them)
+    /// lie beside it, and a run of theirs that lost the end it was bridged to is in air now
+    /// (an embossed letter's skin line, 4 mm from a 1 mm2 region's zone: 0 -> 1.2 mm in air on
+    /// the layer, unjudged). Paths meeting the window are judged whole, and those away from
+    /// every zone are the same in both layers, so a window round zones dropped since adds the
+    /// same length to both sides.
     fn worse_in_air(
         &self,
-        layer: &Layer,
         below: &[&Layer],
         back: &Layer,
-        zones: &[&MultiPolygon<f64>],
+        sliced: Option<(Window, &crate::check::LayerCheck)>,
     ) -> Option<(f64, f64)> {
-        use geo::BoundingRect;
         if below.is_empty() {
             return None;
         }
-        // Only near the regions: a plate-wide layer costs as much to judge as its region
-        // search.
-        // Grown by the longest bridge the check counts: the slicer's strands cut at a zone's
-        // edge (or trimmed back to what holds them) lie beside it, and a run of theirs that
-        // lost the end it was bridged to is in air now (an embossed letter's skin line, 4 mm
-        // from a 1 mm2 region's zone: 0 -> 1.2 mm in air on the layer, unjudged).
-        let m = JUDGE_REACH;
-        let window = window_round(zones.iter().filter_map(|z| z.bounding_rect()), m)?;
+        let (window, sliced) = sliced?;
         let fa = self.motion.filament_area;
         let after = crate::check::in_air_within(below, back, fa, window);
-        let before = crate::check::in_air_within(below, layer, fa, window);
+        let before = sliced.in_air_mm;
         (after > before + WORSE_IN_AIR).then_some((before, after))
     }
 
@@ -2054,13 +2055,27 @@ impl PoaPass<'_> {
         };
         let layer = &d.layer;
         let below = resting_on(&self.below_layers, layer);
-        let (rewrites, held) = drop_held(
-            layer,
-            &below,
-            rewrites,
-            self.width_on(layer),
-            self.motion.filament_area,
-        );
+        // The layer as sliced, checked once near every planned zone (samples kept): what
+        // `drop_held` reads round each gradual ring, and the judge's "as sliced" side. (Three
+        // whole-layer checks a layer cost half of a plate of sloped parts' rewrite.)
+        let sliced_window = {
+            use geo::BoundingRect;
+            window_round(
+                rewrites.iter().filter_map(|r| r.plan.zone.bounding_rect()),
+                JUDGE_REACH,
+            )
+        };
+        let sliced_check = std::cell::OnceCell::new();
+        let sliced = || {
+            sliced_check.get_or_init(|| {
+                sliced_window.map(|w| {
+                    crate::check::check_layer_within(&below, layer, self.motion.filament_area, w)
+                })
+            })
+        };
+        let (rewrites, held) = drop_held(layer, &below, rewrites, self.width_on(layer), || {
+            sliced().as_ref()
+        });
         self.report.skipped.extend(held);
         let rewrites: Vec<RegionRewrite> = rewrites
             .into_iter()
@@ -2104,114 +2119,116 @@ impl PoaPass<'_> {
                 crate::geometry::rewritten_area(area(), &zones, strands),
             ))
         };
-        let rewritten = if rewrites.is_empty() {
-            None
-        } else {
-            let (bytes, stats) = rewrite_layer(
-                layer,
-                &below,
-                above.filter(|a| a.index == layer.index + 1 && a.on_previous()),
-                &rewrites,
-                &self.motion,
-                &self.opts.settings,
-            );
-            // The layer read back, and the estimator's time for it as rewritten and as
-            // sliced, side by side: on a plate's first floating layer each is a few
-            // milliseconds of one core.
-            let (back, planned) = rayon::join(
-                || reread(layer, &bytes, &self.config),
-                || {
-                    let (new, old) = rayon::join(
-                        || layer_time(&self.limits, layer, &bytes),
-                        || layer_time(&self.limits, layer, &layer.raw),
-                    );
-                    new - old
-                },
-            );
-            // Judged where a plan moves the outline (a gradual overhang's, or one on a layer
-            // whose own support moved), and where the zones are small: the wide plans of a
-            // first floating layer grow from the wall below and cost a plate's worth of
-            // samples to judge, while small ones cost little and can do worse than the slicer
-            // (a lettering's strokes on a wall, outer wall first: 0 -> 2.3 mm in air).
-            let judged = above_rewrite
-                || rewrites
-                    .iter()
-                    .any(|r| r.plan.with_perimeter || r.plan.ladder)
-                || rewrites
-                    .iter()
-                    .map(|r| geo::Area::unsigned_area(&r.plan.zone))
-                    .sum::<f64>()
-                    < JUDGED_AREA;
-            if let Some(worse) = back.as_ref().filter(|_| judged).and_then(|b| {
-                let zones: Vec<&MultiPolygon<f64>> =
-                    rewrites.iter().map(|r| &r.plan.zone).collect();
-                self.worse_in_air(layer, &below, b, &zones)
-            }) {
-                // Never worse than the slicer: the layer goes out as sliced.
-                for r in &rewrites {
-                    self.report.skipped.push(SkippedRegion {
-                        region: r.id,
-                        layer: layer.index + 1,
-                        kind: r.kind,
-                        reason: format!(
-                            "rewritten, the layer would print {:.1} mm in air, {:.1} as sliced",
-                            worse.1, worse.0
-                        ),
+        let rewritten =
+            if rewrites.is_empty() {
+                None
+            } else {
+                let (bytes, stats) = rewrite_layer(
+                    layer,
+                    &below,
+                    above.filter(|a| a.index == layer.index + 1 && a.on_previous()),
+                    &rewrites,
+                    &self.motion,
+                    &self.opts.settings,
+                );
+                // The layer read back, and the estimator's time for it as rewritten and as
+                // sliced, side by side: on a plate's first floating layer each is a few
+                // milliseconds of one core.
+                let (back, planned) = rayon::join(
+                    || reread(layer, &bytes, &self.config),
+                    || {
+                        let (new, old) = rayon::join(
+                            || layer_time(&self.limits, layer, &bytes),
+                            || layer_time(&self.limits, layer, &layer.raw),
+                        );
+                        new - old
+                    },
+                );
+                // Judged where a plan moves the outline (a gradual overhang's, or one on a layer
+                // whose own support moved), and where the zones are small: the wide plans of a
+                // first floating layer grow from the wall below and cost a plate's worth of
+                // samples to judge, while small ones cost little and can do worse than the slicer
+                // (a lettering's strokes on a wall, outer wall first: 0 -> 2.3 mm in air).
+                let judged = above_rewrite
+                    || rewrites
+                        .iter()
+                        .any(|r| r.plan.with_perimeter || r.plan.ladder)
+                    || rewrites
+                        .iter()
+                        .map(|r| geo::Area::unsigned_area(&r.plan.zone))
+                        .sum::<f64>()
+                        < JUDGED_AREA;
+                if let Some(worse) = back.as_ref().filter(|_| judged).and_then(|b| {
+                    self.worse_in_air(&below, b, sliced_window.zip(sliced().as_ref()))
+                }) {
+                    // Never worse than the slicer: the layer goes out as sliced.
+                    for r in &rewrites {
+                        self.report.skipped.push(SkippedRegion {
+                            region: r.id,
+                            layer: layer.index + 1,
+                            kind: r.kind,
+                            reason: format!(
+                                "rewritten, the layer would print {:.1} mm in air, {:.1} as sliced",
+                                worse.1, worse.0
+                            ),
+                        });
+                    }
+                    self.rewritten_below = None;
+                    self.reread = None;
+                    self.limits.track_limits(&layer.raw);
+                    self.note_wall_width(layer);
+                    return Ok(None);
+                }
+                self.account(planned, stats);
+                self.reread = back;
+                // A layer whose only rewrites are ladders prints the strips the slicer printed:
+                // the layer above is planned on it as detected.
+                if !moves_outline && rewrites.iter().any(|r| !r.plan.ladder) {
+                    self.wide_below = Some(WideBelow {
+                        index: layer.index,
+                        area: area().clone().into_owned(),
+                        zones: zones.clone(),
+                        strands: rewrites
+                            .iter()
+                            .flat_map(|r| r.plan.strands.iter())
+                            .map(|s| (s.points.clone(), s.width))
+                            .collect(),
                     });
                 }
-                self.rewritten_below = None;
-                self.reread = None;
-                self.limits.track_limits(&layer.raw);
-                self.note_wall_width(layer);
-                return Ok(None);
-            }
-            self.account(planned, stats);
-            self.reread = back;
-            // A layer whose only rewrites are ladders prints the strips the slicer printed:
-            // the layer above is planned on it as detected.
-            if !moves_outline && rewrites.iter().any(|r| !r.plan.ladder) {
-                self.wide_below = Some(WideBelow {
-                    index: layer.index,
-                    area: area().clone().into_owned(),
-                    zones: zones.clone(),
-                    strands: rewrites
-                        .iter()
-                        .flat_map(|r| r.plan.strands.iter())
-                        .map(|s| (s.points.clone(), s.width))
-                        .collect(),
-                });
-            }
-            // The layer above is planned on what this layer prints as written: the area
-            // made from the plan alone keeps, in places, the slicer's perimeter that the
-            // splice took out (an edge a loop above then grew from, in air).
-            if let (Some((i, below_area)), Some(r)) = (&self.rewritten_below, &self.reread) {
-                if *i == layer.index {
-                    // Away from the zones the layer is the slicer's: its area as detected
-                    // there (read back, strands cut at a zone's edge can split the infill's
-                    // outline into pockets the hole rule leaves open, and the layer above
-                    // found a honeycomb's cells over air, layer after layer).
-                    let away = crate::geometry::difference(
-                        area(),
-                        &crate::geometry::margin(&zones, AWAY_FROM_ZONES),
-                    );
-                    let printed = crate::geometry::union(
-                        &crate::geometry::printed_area(r, &self.opts.detect.area),
-                        &away,
-                    );
-                    let rewritten = crate::geometry::intersection(
-                        below_area,
-                        &crate::geometry::offset(&printed, REREAD_SLACK),
-                    );
-                    self.rewritten_below = Some((*i, rewritten));
+                // The layer above is planned on what this layer prints as written: the area
+                // made from the plan alone keeps, in places, the slicer's perimeter that the
+                // splice took out (an edge a loop above then grew from, in air).
+                if let (Some((i, below_area)), Some(r)) = (&self.rewritten_below, &self.reread) {
+                    if *i == layer.index {
+                        // Away from the zones the layer is the slicer's: its area as detected
+                        // there (read back, strands cut at a zone's edge can split the infill's
+                        // outline into pockets the hole rule leaves open, and the layer above
+                        // found a honeycomb's cells over air, layer after layer).
+                        let away = crate::geometry::difference(
+                            area(),
+                            &crate::geometry::margin(&zones, AWAY_FROM_ZONES),
+                        );
+                        let printed = crate::geometry::union(
+                            &crate::geometry::printed_area(r, &self.opts.detect.area),
+                            &away,
+                        );
+                        let rewritten = crate::geometry::intersection(
+                            below_area,
+                            &crate::geometry::offset(&printed, REREAD_SLACK),
+                        );
+                        self.rewritten_below = Some((*i, rewritten));
+                    }
                 }
-            }
-            Some(bytes)
-        };
+                Some(bytes)
+            };
         self.limits.track_limits(&layer.raw);
         self.note_wall_width(layer);
         Ok(rewritten)
     }
 }
+
+/// A box, (min, max) corners.
+type Window = ([f64; 2], [f64; 2]);
 
 /// Total zone area (mm2) of a layer's rewrites under which the rewritten layer is always
 /// judged against the layer as sliced (re-read and checked near the zones).
@@ -2222,12 +2239,12 @@ const JUDGED_AREA: f64 = 100.0;
 /// included): moving it would gain nothing there, and the wall above was sliced on it
 /// where it is; and the ladders whose slicer loop it finds held or short-bridged. They go to
 /// the report.
-fn drop_held(
+fn drop_held<'c>(
     layer: &Layer,
     below: &[&Layer],
     rewrites: Vec<RegionRewrite>,
     loop_width: f64,
-    filament_area: f64,
+    sliced: impl FnOnce() -> Option<&'c crate::check::LayerCheck>,
 ) -> (Vec<RegionRewrite>, Vec<SkippedRegion>) {
     if below.is_empty()
         || !rewrites
@@ -2236,8 +2253,9 @@ fn drop_held(
     {
         return (rewrites, Vec::new());
     }
-    let opts = crate::check::CheckOptions::default();
-    let c = crate::check::check_layer(below, layer, filament_area, &opts, true);
+    let Some(c) = sliced() else {
+        return (rewrites, Vec::new());
+    };
     let walls = wall_lines(layer);
     let unheld: Vec<([f64; 2], bool)> = c
         .samples
