@@ -1296,10 +1296,7 @@ const WORSE_IN_AIR: f64 = 0.3;
 const HANGING_BRIDGE: f64 = 1.0;
 
 /// The box holding `boxes`, grown by `m` mm on every side; `None` for no box.
-fn window_round(
-    boxes: impl Iterator<Item = geo::Rect<f64>>,
-    m: f64,
-) -> Option<Window> {
+fn window_round(boxes: impl Iterator<Item = geo::Rect<f64>>, m: f64) -> Option<Window> {
     boxes
         .map(|b| {
             (
