@@ -341,29 +341,6 @@ fn convert_refuses_a_line_longer_than_the_reader_takes() {
     assert!(!out.exists());
 }
 
-/// Runs `poa ARGS` and returns whether it succeeded, its stderr and its own peak resident size
-/// in KB (from `wait4` on it alone: other tests' children, running alongside, do not count).
-fn poa_peak_kb(args: &[&std::ffi::OsStr], dir: &std::path::Path) -> (bool, String, i64) {
-    let err_path = dir.join("stderr.txt");
-    // Reaped by wait4 below, which alone gives this child's own rusage.
-    #[allow(clippy::zombie_processes)]
-    let child = Command::new(env!("CARGO_BIN_EXE_poa"))
-        .args(args)
-        .stdout(std::process::Stdio::null())
-        .stderr(std::fs::File::create(&err_path).unwrap())
-        .spawn()
-        .unwrap();
-    let mut status = 0;
-    let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
-    // SAFETY: wait4 reaps the child we spawned (std never waits for it after this) and fills
-    // the status and rusage it is given.
-    let pid = unsafe { libc::wait4(child.id() as libc::pid_t, &mut status, 0, &mut usage) };
-    assert_eq!(pid, child.id() as libc::pid_t);
-    let ok = libc::WIFEXITED(status) && libc::WEXITSTATUS(status) == 0;
-    let err = std::fs::read_to_string(&err_path).unwrap_or_default();
-    (ok, err, usage.ru_maxrss)
-}
-
 /// `poa convert` streams both ways: 150 MB of PrusaSlicer text becomes binary G-code and back
 /// with the converter's peak memory under 100 MB (it read the whole file and built the whole
 /// output: 924 MB for 260 MB of text), and the text it writes back converts to the same
@@ -421,11 +398,9 @@ fn convert_runs_in_bounded_memory_both_ways() {
         dir.path().join("again.bgcode"),
     );
     for (from, to) in [(&text, &binary), (&binary, &back), (&back, &again)] {
-        let (ok, err, peak) = poa_peak_kb(
-            &["convert".as_ref(), from.as_os_str(), to.as_os_str()],
-            dir.path(),
-        );
-        assert!(ok, "{err}");
+        let (o, peak) = peak_kib(&[&"convert", from, to], &[]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let Some(peak) = peak else { continue };
         eprintln!(
             "poa convert {} ({} MB): peak {peak} KB",
             from.file_name().unwrap().to_string_lossy(),

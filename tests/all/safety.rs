@@ -58,43 +58,6 @@ fn temps(dir: &Path) -> Vec<String> {
         .collect()
 }
 
-/// Runs poa through python3 and returns its output and peak RSS in KiB (`None` without
-/// python3: the bound is then not measured).
-fn peak_kib(args: &[&dyn AsRef<std::ffi::OsStr>], envs: &[(&str, &str)]) -> (Output, Option<u64>) {
-    let script = "import resource, subprocess, sys\n\
-        r = subprocess.run(sys.argv[1:])\n\
-        sys.stderr.write('\\nPEAK %d\\n' % resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)\n\
-        sys.exit(r.returncode)\n";
-    let mut c = Command::new("python3");
-    c.arg("-c")
-        .arg(script)
-        .arg(env!("CARGO_BIN_EXE_poa"))
-        .args(args);
-    for (k, v) in envs {
-        c.env(k, v);
-    }
-    match c.output() {
-        Ok(mut o) => {
-            let text = String::from_utf8_lossy(&o.stderr).to_string();
-            let (rest, peak) = match text.rsplit_once("\nPEAK ") {
-                Some((rest, p)) => (rest.to_string(), p.trim().parse().ok()),
-                None => (text, None),
-            };
-            o.stderr = rest.into_bytes();
-            (o, peak)
-        }
-        Err(_) => {
-            note("memory bound not measured: python3 is missing");
-            let mut p = poa();
-            p.args(args);
-            for (k, v) in envs {
-                p.env(k, v);
-            }
-            (p.output().unwrap(), None)
-        }
-    }
-}
-
 const MAX_KIB: u64 = 64 * 1024;
 
 // ---------------------------------------------------------------------------------------------
