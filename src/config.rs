@@ -235,6 +235,29 @@ impl SlicerConfig {
             .unwrap_or(0.0)
     }
 
+    /// How far fuzzy skin moves the walls' points off the outline (mm, either way), 0 without
+    /// it: PrusaSlicer and its forks' `fuzzy_skin` (anything but `none`) with
+    /// `fuzzy_skin_thickness`, Cura's `magic_fuzzy_skin_enabled` with
+    /// `magic_fuzzy_skin_thickness` (its front end's `;SETTING_3` profile). Both slicers move
+    /// each point by a random amount up to the thickness inwards or outwards. A stated
+    /// thickness out of 0-2 mm is ignored; fuzzy skin stated on but no thickness read is
+    /// taken at both slicers' default, 0.3 mm.
+    pub fn fuzzy_skin(&self) -> f64 {
+        let thickness = |key: &str| {
+            self.number(key)
+                .filter(|t| (0.0..=2.0).contains(t))
+                .unwrap_or(0.3)
+        };
+        let prusa = self.get("fuzzy_skin").map(str::trim);
+        if prusa.is_some_and(|v| !v.is_empty() && !v.eq_ignore_ascii_case("none")) {
+            return thickness("fuzzy_skin_thickness");
+        }
+        if self.bool("magic_fuzzy_skin_enabled") == Some(true) {
+            return thickness("magic_fuzzy_skin_thickness");
+        }
+        0.0
+    }
+
     pub fn layer_height(&self) -> Option<f64> {
         self.number("layer_height").filter(|h| *h > 0.0 && *h < 5.0)
     }
@@ -406,6 +429,26 @@ mod tests {
         assert_eq!(cfg.number("layer_height"), Some(0.12));
         assert_eq!(cfg.number("wall_line_count"), Some(3.0));
         assert_eq!(cfg.get("gcode_flavor"), Some("Marlin"));
+    }
+
+    #[test]
+    fn fuzzy_skin_is_read_from_both_families() {
+        let none = SlicerConfig::parse(b"; fuzzy_skin = none\n; fuzzy_skin_thickness = 0.3\n");
+        assert_eq!(none.fuzzy_skin(), 0.0);
+        assert_eq!(
+            SlicerConfig::parse(b"; layer_height = 0.2\n").fuzzy_skin(),
+            0.0
+        );
+        let ps = SlicerConfig::parse(b"; fuzzy_skin = external\n; fuzzy_skin_thickness = 0.5\n");
+        assert_eq!(ps.fuzzy_skin(), 0.5);
+        let orca = SlicerConfig::parse(b"; fuzzy_skin = allwalls\n");
+        assert_eq!(orca.fuzzy_skin(), 0.3);
+        let wild = SlicerConfig::parse(b"; fuzzy_skin = all\n; fuzzy_skin_thickness = 1e9\n");
+        assert_eq!(wild.fuzzy_skin(), 0.3);
+        let cura = SlicerConfig::parse(
+            b";SETTING_3 {\"global_quality\": \"[values]\\\\nmagic_fuzzy_skin_enabled = True\\\\nmagic_f\n;SETTING_3 uzzy_skin_thickness = 0.4\\\\n\"}\n",
+        );
+        assert_eq!(cura.fuzzy_skin(), 0.4);
     }
 
     #[test]

@@ -55,7 +55,7 @@ pub const SPECS: &[Spec] = &[
     Spec { key: "perimeter_inset", kind: Kind::Number { min: 0.0, max: 2.0 }, default: "0.05", unit: "mm", help: "how far the region's outer perimeter is pulled inward" },
     Spec { key: "temperature_offset", kind: Kind::Number { min: -50.0, max: 50.0 }, default: "0", unit: "C", help: "nozzle temperature change while printing loops" },
     Spec { key: "bridges", kind: Kind::Choice(&["auto", "keep", "poa"]), default: "auto", unit: "", help: "rewrite bridges whose slicer strands would be in air (auto), all bridges (poa), or none (keep)" },
-    Spec { key: "tolerance", kind: Kind::Auto { min: 0.0, max: 10.0 }, default: "auto", unit: "mm", help: "distance from the layer below that still counts as supported (auto: half the external perimeter width)" },
+    Spec { key: "tolerance", kind: Kind::Auto { min: 0.0, max: 10.0 }, default: "auto", unit: "mm", help: "distance from the layer below that still counts as supported (auto: half the external perimeter width, plus the fuzzy skin thickness where the file has fuzzy skin)" },
     Spec { key: "overhang_angle", kind: Kind::Auto { min: 0.0, max: 89.9 }, default: "auto", unit: "deg", help: "the tolerance as an overhang angle from vertical (overrides tolerance)" },
     Spec { key: "min_width", kind: Kind::Auto { min: 0.0, max: 50.0 }, default: "auto", unit: "mm", help: "narrowest region rewritten (auto: a tenth of a perimeter width, so gradual overhangs are rewritten too)" },
     Spec { key: "min_area", kind: Kind::Number { min: 0.0, max: 100_000.0 }, default: "0.2", unit: "mm2", help: "smallest region rewritten; those under 1 mm2 only where the slicer's strands over them would be in air" },
@@ -514,7 +514,11 @@ pub fn describe(eff: &Effective, config: &SlicerConfig) -> String {
             "perimeter_speed" => (motion.perimeter_speed.to_string(), "auto: loop_speed"),
             "tolerance" => (
                 format!("{tolerance:.3} mm"),
-                "auto: half the external perimeter width",
+                if detect.fuzzy_skin > 0.0 {
+                    "auto: half the external perimeter width plus the fuzzy skin thickness"
+                } else {
+                    "auto: half the external perimeter width"
+                },
             ),
             "overhang_angle" => (
                 format!("{:.1} deg", (tolerance / height).atan().to_degrees()),
