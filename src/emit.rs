@@ -1156,8 +1156,18 @@ fn emit_block(
         } else if i > 0 {
             let d = dist(w.position(), s.points[0]);
             // Inside a gradual overhang's block too: its strands lie along the wall, over
-            // the part, and a retraction and lift each way cost more than the strand.
-            let short = d <= hop.max(2.0 * s.width);
+            // the part, and a retraction and lift each way cost more than the strand. A hop
+            // over the block's own fresh strands goes without them as well (the slicers'
+            // combing: what oozes lands on a loop): strokes across a twisted bar's crescent,
+            // each a few millimetres, had a retraction and a Z-hop each way between them.
+            let short = d <= hop.max(2.0 * s.width)
+                || (d <= OVER_LOOPS_HOP
+                    && over_laid(
+                        &plan.strands[..i],
+                        [w.position()[0], w.position()[1]],
+                        s.points[0],
+                        s.width,
+                    ));
             let hop = w.travel(t, s.points[0], !short);
             travel += hop;
             stats.inner_travel_mm += hop;
@@ -1325,6 +1335,37 @@ const JUDGE_REACH: f64 = 10.0;
 
 /// Longest hop (mm) into or out of a gradual overhang's block made without retraction.
 const THIN_HOP: f64 = 10.0;
+
+/// Longest hop (mm) between a block's strands made without retraction and lift where it
+/// runs over strands the block laid already ([`over_laid`]).
+const OVER_LOOPS_HOP: f64 = 10.0;
+
+/// Whether the straight hop from `a` to `b` runs over the strands `laid`: every point of it
+/// (sampled every quarter of `width`) within [`CONNECT_NEAR`] widths of one of them.
+fn over_laid(laid: &[Strand], a: [f64; 2], b: [f64; 2], width: f64) -> bool {
+    let len = (b[0] - a[0]).hypot(b[1] - a[1]);
+    let r = CONNECT_NEAR * width;
+    // Only strands whose box comes within reach of the hop's can hold a point of it.
+    let (lo, hi) = (
+        [a[0].min(b[0]) - r, a[1].min(b[1]) - r],
+        [a[0].max(b[0]) + r, a[1].max(b[1]) + r],
+    );
+    let near: Vec<&[[f64; 2]]> = laid
+        .iter()
+        .map(|s| &s.points[..])
+        .filter(|p| {
+            crate::geometry::points_box(p).is_some_and(|q| {
+                q.min().x <= hi[0] && lo[0] <= q.max().x && q.min().y <= hi[1] && lo[1] <= q.max().y
+            })
+        })
+        .collect();
+    let n = ((len / (0.25 * width)).ceil() as usize).max(1);
+    (0..=n).all(|k| {
+        let t = k as f64 / n as f64;
+        let p = [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])];
+        near.iter().any(|line| near_polyline(p, line, r))
+    })
+}
 
 /// Slowest speed poa slows a loop to for cooling: slower, the bead of a 0.4 mm nozzle no
 /// longer comes out even.
@@ -2737,6 +2778,27 @@ mod tests {
         // A hop straight on past the end, to a piece beyond a gap, leaves both beads.
         let beyond = loop_strand(2, vec![[2.1, 0.0], [2.1, -1.3]]);
         assert!(!connects(&a, &beyond));
+    }
+
+    #[test]
+    fn hops_over_the_laid_strands_are_told_from_hops_over_nothing() {
+        // Strokes across a crescent, 0.3 mm apart: back along the stroke just laid to the
+        // next one's start, 1.7 mm, over it all the way.
+        let laid = [
+            loop_strand(1, vec![[0.0, 0.0], [5.0, 0.0]]),
+            loop_strand(2, vec![[0.0, 0.3], [3.0, 0.3]]),
+        ];
+        assert!(over_laid(&laid[..1], [5.0, 0.0], [3.3, 0.3], 0.45));
+        assert!(over_laid(&laid, [3.0, 0.3], [0.5, 0.6], 0.45));
+        // Past the end of every strand: over nothing laid yet.
+        assert!(!over_laid(&laid, [5.0, 0.0], [6.5, 0.0], 0.45));
+        // Across a gap between two strands a millimetre apart.
+        let apart = [
+            loop_strand(1, vec![[0.0, 0.0], [5.0, 0.0]]),
+            loop_strand(1, vec![[0.0, 2.0], [5.0, 2.0]]),
+        ];
+        assert!(!over_laid(&apart, [5.0, 0.0], [5.0, 2.0], 0.45));
+        assert!(!over_laid(&[], [0.0, 0.0], [1.0, 0.0], 0.45));
     }
 
     #[test]
