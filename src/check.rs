@@ -624,7 +624,8 @@ const TALL_INFILL: f64 = 1.7;
 /// In-air length (mm) of the strands of `layer` that come within `window` (min, max
 /// corners), judged as [`check_layer`] judges them: only what lies near the window is
 /// looked at (a rewritten region's neighbourhood on a plate-wide layer).
-/// [`check_layer`] of the strands of `layer` that come within `window`, with their samples.
+/// [`check_layer`] of the strands of `layer` that come within `window`, with their samples
+/// (no density: 0).
 pub fn check_layer_within(
     below: &[&Layer],
     layer: &Layer,
@@ -804,9 +805,12 @@ fn check_within(
         }
     }
     // The density's footprint buffers every vertex of the layer: past [`MAX_DENSITY_POINTS`]
-    // (a layer of a million tiny moves took 330 MB and 5 s) it is not reported (0).
+    // (a layer of a million tiny moves took 330 MB and 5 s) it is not reported (0); nor for
+    // a check within a window (the rewrite's judge, which reads in-air lengths and samples
+    // only: the whole layer's footprint, twice a rewritten layer, was a quarter of a plate
+    // of bowls' rewrite).
     let points: usize = layer.paths.iter().map(|p| p.points.len()).sum();
-    let area = if points > MAX_DENSITY_POINTS {
+    let area = if points > MAX_DENSITY_POINTS || window.is_some() {
         0.0
     } else {
         footprint(
@@ -1112,6 +1116,12 @@ mod tests {
             in_air_within(&[&below], &above, fa, ([50.0, 50.0], [60.0, 60.0])),
             0.0
         );
+        // The same lengths and samples, without the whole layer's density (its footprint
+        // is the costly part, and the rewrite's judge reads none of it).
+        let windowed = check_layer_within(&[&below], &above, fa, ([-9.0, -9.0], [9.0, 9.0]));
+        assert!(whole.density > 0.0 && windowed.density == 0.0);
+        assert!((windowed.bridged_mm - whole.bridged_mm).abs() < 1e-6);
+        assert!(!windowed.samples.is_empty());
     }
 
     #[test]
