@@ -565,7 +565,18 @@ pub fn check_layer(
     opts: &CheckOptions,
     keep_samples: bool,
 ) -> LayerCheck {
-    check_within(below, &[], layer, filament_area, opts, keep_samples, None)
+    check_within(
+        below,
+        &[],
+        layer,
+        filament_area,
+        opts,
+        Wants {
+            samples: keep_samples,
+            density: true,
+        },
+        None,
+    )
 }
 
 /// [`check_layer`] with the layers under those below (`deeper`), which hold the layer's
@@ -579,7 +590,18 @@ pub fn check_layer_over(
     filament_area: f64,
     opts: &CheckOptions,
 ) -> LayerCheck {
-    check_within(below, deeper, layer, filament_area, opts, false, None)
+    check_within(
+        below,
+        deeper,
+        layer,
+        filament_area,
+        opts,
+        Wants {
+            samples: false,
+            density: true,
+        },
+        None,
+    )
 }
 
 /// E-width above which a layer's sparse infill is taller than the layer ([`check_layer_over`]):
@@ -624,6 +646,24 @@ const TALL_INFILL: f64 = 1.7;
 /// In-air length (mm) of the strands of `layer` that come within `window` (min, max
 /// corners), judged as [`check_layer`] judges them: only what lies near the window is
 /// looked at (a rewritten region's neighbourhood on a plate-wide layer).
+/// [`check_layer`] with its samples and no density (0): what the rewrite reads of a layer
+/// with bridges to judge.
+pub fn check_layer_samples(below: &[&Layer], layer: &Layer, filament_area: f64) -> LayerCheck {
+    let opts = CheckOptions::default();
+    check_within(
+        below,
+        &[],
+        layer,
+        filament_area,
+        &opts,
+        Wants {
+            samples: true,
+            density: false,
+        },
+        None,
+    )
+}
+
 /// [`check_layer`] of the strands of `layer` that come within `window`, with their samples
 /// (no density: 0).
 pub fn check_layer_within(
@@ -633,7 +673,18 @@ pub fn check_layer_within(
     window: ([f64; 2], [f64; 2]),
 ) -> LayerCheck {
     let opts = CheckOptions::default();
-    check_within(below, &[], layer, filament_area, &opts, true, Some(window))
+    check_within(
+        below,
+        &[],
+        layer,
+        filament_area,
+        &opts,
+        Wants {
+            samples: true,
+            density: false,
+        },
+        Some(window),
+    )
 }
 
 pub fn in_air_within(
@@ -643,7 +694,19 @@ pub fn in_air_within(
     window: ([f64; 2], [f64; 2]),
 ) -> f64 {
     let opts = CheckOptions::default();
-    check_within(below, &[], layer, filament_area, &opts, false, Some(window)).in_air_mm
+    check_within(
+        below,
+        &[],
+        layer,
+        filament_area,
+        &opts,
+        Wants {
+            samples: false,
+            density: false,
+        },
+        Some(window),
+    )
+    .in_air_mm
 }
 
 /// Whether the box `a` meets the box `b` grown by `m`.
@@ -668,15 +731,26 @@ fn points_bounds(points: &[[f64; 2]]) -> ([f64; 2], [f64; 2]) {
 /// of it: more than any bead's half width.
 const WINDOW_MARGIN: f64 = 6.0;
 
+/// What a check keeps besides the lengths: the samples, the layer's density.
+#[derive(Debug, Clone, Copy)]
+struct Wants {
+    samples: bool,
+    density: bool,
+}
+
 fn check_within(
     below: &[&Layer],
     deeper: &[&Layer],
     layer: &Layer,
     filament_area: f64,
     opts: &CheckOptions,
-    keep_samples: bool,
+    wants: Wants,
     window: Option<([f64; 2], [f64; 2])>,
 ) -> LayerCheck {
+    let Wants {
+        samples: keep_samples,
+        density,
+    } = wants;
     let mut result = LayerCheck {
         layer: layer.index + 1,
         z: layer.z,
@@ -805,12 +879,12 @@ fn check_within(
         }
     }
     // The density's footprint buffers every vertex of the layer: past [`MAX_DENSITY_POINTS`]
-    // (a layer of a million tiny moves took 330 MB and 5 s) it is not reported (0); nor for
-    // a check within a window (the rewrite's judge, which reads in-air lengths and samples
-    // only: the whole layer's footprint, twice a rewritten layer, was a quarter of a plate
-    // of bowls' rewrite).
+    // (a layer of a million tiny moves took 330 MB and 5 s) it is not reported (0); nor where
+    // it is not asked for (the rewrite's judge, which reads in-air lengths and samples only:
+    // the whole layer's footprint, twice a rewritten layer, was a quarter of a plate of
+    // bowls' rewrite).
     let points: usize = layer.paths.iter().map(|p| p.points.len()).sum();
-    let area = if points > MAX_DENSITY_POINTS || window.is_some() {
+    let area = if points > MAX_DENSITY_POINTS || !density {
         0.0
     } else {
         footprint(

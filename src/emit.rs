@@ -1728,13 +1728,7 @@ impl<'a> PoaPass<'a> {
         let fa = self.motion.filament_area;
         let c = match window.filter(|_| !bridges) {
             Some(w) => crate::check::check_layer_within(&below, layer, fa, w),
-            None => crate::check::check_layer(
-                &below,
-                layer,
-                fa,
-                &crate::check::CheckOptions::default(),
-                true,
-            ),
+            None => crate::check::check_layer_samples(&below, layer, fa),
         };
         let in_air: Vec<&crate::check::Sample> = c
             .samples
