@@ -306,6 +306,8 @@ pub struct DetectSettings {
     pub min_width_mm: f64,
     pub min_area_mm2: f64,
     pub external_width_mm: f64,
+    /// Fuzzy skin thickness the file states (mm, 0 without): in the automatic tolerance.
+    pub fuzzy_skin_mm: f64,
 }
 
 /// `poa analyze`: where the file prints over air.
@@ -466,6 +468,7 @@ pub fn analyze<R: BufRead + Send>(
             min_width_mm: opts.min_width(),
             min_area_mm2: opts.min_area,
             external_width_mm: opts.external_width,
+            fuzzy_skin_mm: opts.fuzzy_skin,
         },
         summary,
         regions: reports,
@@ -558,9 +561,15 @@ impl fmt::Display for AnalyzeReport {
                 )?;
             }
         }
+        let fuzzy = match (&self.settings.tolerance, self.settings.fuzzy_skin_mm) {
+            (Tolerance::Auto, t) if t > 0.0 => {
+                format!(", with the file's fuzzy skin thickness {t:.2} mm")
+            }
+            _ => String::new(),
+        };
         writeln!(
             f,
-            "  (tolerance {:.3} mm, minimum width {:.2} mm, minimum area {:.1} mm2)",
+            "  (tolerance {:.3} mm{fuzzy}, minimum width {:.2} mm, minimum area {:.1} mm2)",
             self.settings.tolerance_mm, self.settings.min_width_mm, self.settings.min_area_mm2
         )?;
         for d in &self.diagnostics {

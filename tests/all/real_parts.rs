@@ -592,6 +592,16 @@ fn fuzzy_skin_on_a_vertical_wall_is_no_overhang() {
         b.in_air_mm
     );
     at_most_a_tenth_longer("fuzzy mushroom", &before, &after);
+    // `poa analyze` says where its tolerance comes from.
+    let dir = tempfile::tempdir().unwrap();
+    let f = dir.path().join("fuzzy.gcode");
+    std::fs::write(&f, &d).unwrap();
+    let o = poa().arg("analyze").arg(&f).output().unwrap();
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        text.contains("(tolerance 0.725 mm, with the file's fuzzy skin thickness 0.50 mm"),
+        "{text}"
+    );
 }
 
 /// The rewrite adds at most 10 % to the print's time.
