@@ -282,17 +282,16 @@ fn infill_in_a_hole(r: &Region, below: &MultiPolygon<f64>, layer: &Layer) -> boo
     if r.extrusions.iter().any(|e| e.role != infill) {
         return false;
     }
-    if r.extrusions.is_empty() && under_a_bead(&r.polygon, layer) {
-        return false;
-    }
     let Some(at) = r.polygon.interior_point() else {
         return false;
     };
+    // The hole first: the bead test measures every wall segment of the layer against the
+    // region (a bowl's thin ring, no hole: a twentieth of a plate of bowls' time).
     below.0.iter().any(|q| {
         q.interiors()
             .iter()
             .any(|h| Polygon::new(h.clone(), Vec::new()).contains(&at))
-    })
+    }) && !(r.extrusions.is_empty() && under_a_bead(&r.polygon, layer))
 }
 
 /// Whether a strand other than sparse infill lays its bead over part of `polygon`: its centre
@@ -334,6 +333,11 @@ fn support_only(r: &Region, layer: &Layer, boxes: &[Option<Rect<f64>>]) -> bool 
     let only = |e: &[RoleExtrusion]| !e.is_empty() && e.iter().all(|e| support.contains(&e.role));
     if !r.extrusions.is_empty() {
         return only(&r.extrusions);
+    }
+    // Nothing near is support where the layer prints none (the search below grows the region
+    // and clips every strand of the layer to it).
+    if !layer.paths.iter().any(|p| support.contains(&p.role.name())) {
+        return false;
     }
     let reach = layer
         .paths
