@@ -2440,6 +2440,9 @@ pub fn process<R: BufRead + Send, W: Write + Send>(
         .iter()
         .map(|(_, why)| why.clone())
         .collect();
+    if let Some(note) = fuzzy_note(&opts.detect, config.layer_height().unwrap_or(0.2)) {
+        pass.report.notes.push(note);
+    }
     let filament_area = pass.motion.filament_area;
     let density = config.filament_density();
     let mut reader = crate::layers::LayerReader::new(
@@ -2583,6 +2586,20 @@ pub fn process<R: BufRead + Send, W: Write + Send>(
     }
     report.slicer = reader.facts().slicer.name().to_string();
     Ok(report)
+}
+
+/// What fuzzy skin does to the rewrite, when the file has it and the tolerance is automatic:
+/// slopes under the tolerance grown by its thickness are left as sliced.
+fn fuzzy_note(detect: &crate::geometry::DetectOptions, height: f64) -> Option<String> {
+    let t = detect.fuzzy_skin;
+    if t <= 0.0 || !matches!(detect.tolerance, crate::geometry::Tolerance::Auto) {
+        return None;
+    }
+    let tol = detect.tolerance_at(height);
+    Some(format!(
+        "fuzzy skin {t:.2} mm: the tolerance is {tol:.3} mm, so slopes flatter than {:.0} degrees from vertical (at {height} mm layers) are left as sliced",
+        (tol / height).atan().to_degrees()
+    ))
 }
 
 /// Print time of `text` (a layer's lines) from the machine state where `layer` starts, with
@@ -2772,6 +2789,21 @@ mod tests {
         // A hop straight on past the end, to a piece beyond a gap, leaves both beads.
         let beyond = loop_strand(2, vec![[2.1, 0.0], [2.1, -1.3]]);
         assert!(!connects(&a, &beyond));
+    }
+
+    #[test]
+    fn fuzzy_skin_is_noted_only_with_the_automatic_tolerance() {
+        let mut d = crate::geometry::DetectOptions::default();
+        assert_eq!(fuzzy_note(&d, 0.2), None);
+        d.fuzzy_skin = 0.3;
+        let note = fuzzy_note(&d, 0.2).unwrap();
+        // (0.225 + 0.3) / 0.2: 69 degrees.
+        assert!(
+            note.contains("0.525 mm") && note.contains("69 degrees"),
+            "{note}"
+        );
+        d.tolerance = crate::geometry::Tolerance::Distance(0.3);
+        assert_eq!(fuzzy_note(&d, 0.2), None);
     }
 
     #[test]
