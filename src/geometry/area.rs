@@ -369,7 +369,7 @@ pub fn area_from_footprint(
                 };
             // Most layers have no hole that the infill test leaves undecided: build the wall
             // zone only for the first one that needs it.
-            let mut wall_fp: Option<Located> = None;
+            let mut wall_fp: Option<WallZone> = None;
             let area = close_holes(fp, |hole| {
                 contains_own(hole, &inside, &islands)
                     || hole_width_below(hole, opts.min_hole)
@@ -541,13 +541,102 @@ fn contains_own(
 }
 
 /// Where an external perimeter's inner edge can be: its footprint grown by a margin.
-fn wall_zone(walls: &[&Path]) -> Located {
-    let fp = footprint(walls.iter().copied());
-    Located::new(offset(&fp, 0.1))
+fn wall_zone(walls: &[&Path]) -> WallZone {
+    WallZone::new(walls)
+}
+
+/// How far past a wall's bead a hole's edge point still runs along the wall (mm).
+const WALL_ZONE: f64 = 0.1;
+
+/// The external perimeters' segments bucketed on a grid: whether a point lies within
+/// [`WALL_ZONE`] of a wall's bead (its centreline within half its width, rounded to a
+/// micrometre as the footprints are, plus that). The same points as the wall footprint grown
+/// by [`WALL_ZONE`] holds, up to the arcs' chord tolerance (5 um), without buffering every
+/// wall of the layer and growing the union (a twelfth of a plate of bowls' time).
+struct WallZone {
+    cells: std::collections::HashMap<(i64, i64), Vec<u32>>,
+    /// (a, b, reach): a segment and how far from its line a point is on it.
+    segs: Vec<([f64; 2], [f64; 2], f64)>,
+    /// Segments too long to bucket (moves gone relative by a stray G91): asked every time.
+    long: Vec<u32>,
+}
+
+/// Grid cell of a [`WallZone`] (mm).
+const WALL_CELL: f64 = 1.0;
+
+/// Longest segment a [`WallZone`] buckets (mm).
+const WALL_BUCKETED: f64 = 10_000.0;
+
+impl WallZone {
+    fn new(walls: &[&Path]) -> WallZone {
+        let mut zone = WallZone {
+            cells: Default::default(),
+            segs: Vec::new(),
+            long: Vec::new(),
+        };
+        let cell = |v: f64| (v / WALL_CELL).floor() as i64;
+        for p in walls {
+            if p.points.len() < 2 || !(p.width > 0.0 && p.width < 50.0) {
+                continue;
+            }
+            let half = (p.width * 1000.0).round() / 2000.0;
+            let reach = half + WALL_ZONE;
+            let around = (reach / WALL_CELL).ceil() as i64 + 1;
+            for w in p.points.windows(2) {
+                let (a, b) = (w[0], w[1]);
+                if !a.iter().chain(&b).all(|v| v.is_finite()) {
+                    continue;
+                }
+                let k = zone.segs.len() as u32;
+                zone.segs.push((a, b, reach));
+                let len = (b[0] - a[0]).hypot(b[1] - a[1]);
+                if len > WALL_BUCKETED {
+                    zone.long.push(k);
+                    continue;
+                }
+                // Cells round points every half cell along the segment; a cell gets it when
+                // any point of the cell can be within reach of it.
+                let n = (len / (WALL_CELL / 2.0)).ceil() as usize + 1;
+                for i in 0..=n {
+                    let t = i as f64 / n as f64;
+                    let (sx, sy) = (
+                        cell(a[0] + t * (b[0] - a[0])),
+                        cell(a[1] + t * (b[1] - a[1])),
+                    );
+                    for cx in sx - around..=sx + around {
+                        for cy in sy - around..=sy + around {
+                            let c = [(cx as f64 + 0.5) * WALL_CELL, (cy as f64 + 0.5) * WALL_CELL];
+                            let (_, q) = super::nearest_on_segment(c, a, b);
+                            if (q[0] - c[0]).hypot(q[1] - c[1]) <= reach + WALL_CELL * 0.75 {
+                                let v = zone.cells.entry((cx, cy)).or_default();
+                                if v.last() != Some(&k) {
+                                    v.push(k);
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        zone
+    }
+
+    fn contains(&self, x: f64, y: f64) -> bool {
+        let on = |k: &u32| {
+            let (a, b, reach) = self.segs[*k as usize];
+            let (_, q) = super::nearest_on_segment([x, y], a, b);
+            (q[0] - x).hypot(q[1] - y) <= reach
+        };
+        let key = (
+            (x / WALL_CELL).floor() as i64,
+            (y / WALL_CELL).floor() as i64,
+        );
+        self.cells.get(&key).is_some_and(|v| v.iter().any(on)) || self.long.iter().any(on)
+    }
 }
 
 /// Whether most of a hole's edge runs along an external perimeter.
-fn walled_by(hole: &LineString<f64>, walls: &Located) -> bool {
+fn walled_by(hole: &LineString<f64>, walls: &WallZone) -> bool {
     let n = hole.0.len().saturating_sub(1).max(1);
     let on_wall = hole.0[..n]
         .iter()
@@ -653,6 +742,49 @@ mod tests {
     use crate::layers::Role;
 
     use crate::layers::testing::path;
+
+    #[test]
+    fn the_wall_zone_holds_what_the_grown_wall_footprint_holds() {
+        // A ring of 0.45 mm walls, a square of 0.42 mm ones and a long diagonal: points on a
+        // 0.05 mm grid, answered alike away from the zone's edge (the footprint's arcs are
+        // chords within 5 um of it).
+        let ring: Vec<[f64; 2]> = (0..=96)
+            .map(|i| {
+                let a = std::f64::consts::TAU * i as f64 / 96.0;
+                [10.0 + 6.0 * a.cos(), 10.0 + 6.0 * a.sin()]
+            })
+            .collect();
+        let walls = [
+            path(Role::ExternalPerimeter, 0.45, &ring),
+            path(Role::ExternalPerimeter, 0.42, &square(1.0, 1.0, 5.0)),
+            path(Role::ExternalPerimeter, 0.45, &[[0.0, 20.0], [20.0, 0.3]]),
+        ];
+        let refs: Vec<&Path> = walls.iter().collect();
+        let grown = Located::new(offset(&footprint(refs.iter().copied()), WALL_ZONE));
+        let zone = WallZone::new(&refs);
+        let mut checked = 0;
+        for i in 0..440 {
+            for j in 0..440 {
+                let (x, y) = (i as f64 * 0.05 - 1.0, j as f64 * 0.05 - 1.0);
+                let margin = walls
+                    .iter()
+                    .flat_map(|p| {
+                        let half = p.width / 2.0;
+                        p.points.windows(2).map(move |w| {
+                            let (_, q) = crate::geometry::nearest_on_segment([x, y], w[0], w[1]);
+                            (q[0] - x).hypot(q[1] - y) - half - WALL_ZONE
+                        })
+                    })
+                    .fold(f64::INFINITY, f64::min);
+                if margin.abs() < 0.01 {
+                    continue;
+                }
+                checked += 1;
+                assert_eq!(zone.contains(x, y), grown.contains(x, y), "({x}, {y})");
+            }
+        }
+        assert!(checked > 150_000, "{checked}");
+    }
 
     fn square(x: f64, y: f64, side: f64) -> Vec<[f64; 2]> {
         vec![
