@@ -643,25 +643,10 @@ const MIN_WALL_JUDGED: f64 = 5.0;
 /// See [`tall_infill_width`].
 const TALL_INFILL: f64 = 1.7;
 
-/// In-air length (mm) of the strands of `layer` that come within `window` (min, max
-/// corners), judged as [`check_layer`] judges them: only what lies near the window is
-/// looked at (a rewritten region's neighbourhood on a plate-wide layer).
 /// [`check_layer`] with its samples and no density (0): what the rewrite reads of a layer
 /// with bridges to judge.
 pub fn check_layer_samples(below: &[&Layer], layer: &Layer, filament_area: f64) -> LayerCheck {
-    let opts = CheckOptions::default();
-    check_within(
-        below,
-        &[],
-        layer,
-        filament_area,
-        &opts,
-        Wants {
-            samples: true,
-            density: false,
-        },
-        None,
-    )
+    for_rewrite(below, layer, filament_area, None, true)
 }
 
 /// [`check_layer`] of the strands of `layer` that come within `window`, with their samples
@@ -672,41 +657,42 @@ pub fn check_layer_within(
     filament_area: f64,
     window: ([f64; 2], [f64; 2]),
 ) -> LayerCheck {
-    let opts = CheckOptions::default();
-    check_within(
-        below,
-        &[],
-        layer,
-        filament_area,
-        &opts,
-        Wants {
-            samples: true,
-            density: false,
-        },
-        Some(window),
-    )
+    for_rewrite(below, layer, filament_area, Some(window), true)
 }
 
+/// In-air length (mm) of the strands of `layer` that come within `window` (min, max
+/// corners), judged as [`check_layer`] judges them: only what lies near the window is
+/// looked at (a rewritten region's neighbourhood on a plate-wide layer).
 pub fn in_air_within(
     below: &[&Layer],
     layer: &Layer,
     filament_area: f64,
     window: ([f64; 2], [f64; 2]),
 ) -> f64 {
-    let opts = CheckOptions::default();
+    for_rewrite(below, layer, filament_area, Some(window), false).in_air_mm
+}
+
+/// The checks the rewrite makes: default options, no density (it reads none).
+fn for_rewrite(
+    below: &[&Layer],
+    layer: &Layer,
+    filament_area: f64,
+    window: Option<([f64; 2], [f64; 2])>,
+    samples: bool,
+) -> LayerCheck {
+    let wants = Wants {
+        samples,
+        density: false,
+    };
     check_within(
         below,
         &[],
         layer,
         filament_area,
-        &opts,
-        Wants {
-            samples: false,
-            density: false,
-        },
-        Some(window),
+        &CheckOptions::default(),
+        wants,
+        window,
     )
-    .in_air_mm
 }
 
 /// Whether the box `a` meets the box `b` grown by `m`.
