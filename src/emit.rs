@@ -1163,7 +1163,7 @@ fn emit_block(
             let short = d <= hop.max(2.0 * s.width)
                 || (d <= OVER_LOOPS_HOP
                     && over_laid(
-                        &plan.strands[..i],
+                        plan.strands[..i].iter().map(|s| &s.points[..]),
                         [w.position()[0], w.position()[1]],
                         s.points[0],
                         s.width,
@@ -1266,13 +1266,7 @@ fn connects(prev: &Strand, next: &Strand) -> bool {
     if len > CONNECT_WIDTHS * w || len < CONNECT_SHARE * polyline_length(&next.points) {
         return false;
     }
-    let n = ((len / (0.25 * w)).ceil() as usize).max(1);
-    (1..n).all(|k| {
-        let t = k as f64 / n as f64;
-        let p = [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])];
-        near_polyline(p, &prev.points, CONNECT_NEAR * w)
-            || near_polyline(p, &next.points, CONNECT_NEAR * w)
-    })
+    over_laid([&prev.points[..], &next.points[..]], a, b, w)
 }
 
 /// Longest extruded connector between loops, in loop widths: the seam stagger of closed
@@ -1340,9 +1334,15 @@ const THIN_HOP: f64 = 10.0;
 /// runs over strands the block laid already ([`over_laid`]).
 const OVER_LOOPS_HOP: f64 = 10.0;
 
-/// Whether the straight hop from `a` to `b` runs over the strands `laid`: every point of it
-/// (sampled every quarter of `width`) within [`CONNECT_NEAR`] widths of one of them.
-fn over_laid(laid: &[Strand], a: [f64; 2], b: [f64; 2], width: f64) -> bool {
+/// Whether the straight step from `a` to `b` runs over the polylines `laid` (strands' centre
+/// lines): every point of it (sampled every quarter of `width`) within [`CONNECT_NEAR`]
+/// widths of one of them.
+fn over_laid<'a>(
+    laid: impl IntoIterator<Item = &'a [[f64; 2]]>,
+    a: [f64; 2],
+    b: [f64; 2],
+    width: f64,
+) -> bool {
     let len = (b[0] - a[0]).hypot(b[1] - a[1]);
     let r = CONNECT_NEAR * width;
     // Only strands whose box comes within reach of the hop's can hold a point of it.
@@ -1351,8 +1351,7 @@ fn over_laid(laid: &[Strand], a: [f64; 2], b: [f64; 2], width: f64) -> bool {
         [a[0].max(b[0]) + r, a[1].max(b[1]) + r],
     );
     let near: Vec<&[[f64; 2]]> = laid
-        .iter()
-        .map(|s| &s.points[..])
+        .into_iter()
         .filter(|p| {
             crate::geometry::points_box(p).is_some_and(|q| {
                 q.min().x <= hi[0] && lo[0] <= q.max().x && q.min().y <= hi[1] && lo[1] <= q.max().y
@@ -2810,21 +2809,16 @@ mod tests {
     fn hops_over_the_laid_strands_are_told_from_hops_over_nothing() {
         // Strokes across a crescent, 0.3 mm apart: back along the stroke just laid to the
         // next one's start, 1.7 mm, over it all the way.
-        let laid = [
-            loop_strand(1, vec![[0.0, 0.0], [5.0, 0.0]]),
-            loop_strand(2, vec![[0.0, 0.3], [3.0, 0.3]]),
-        ];
-        assert!(over_laid(&laid[..1], [5.0, 0.0], [3.3, 0.3], 0.45));
-        assert!(over_laid(&laid, [3.0, 0.3], [0.5, 0.6], 0.45));
+        let first: &[[f64; 2]] = &[[0.0, 0.0], [5.0, 0.0]];
+        let second: &[[f64; 2]] = &[[0.0, 0.3], [3.0, 0.3]];
+        assert!(over_laid([first], [5.0, 0.0], [3.3, 0.3], 0.45));
+        assert!(over_laid([first, second], [3.0, 0.3], [0.5, 0.6], 0.45));
         // Past the end of every strand: over nothing laid yet.
-        assert!(!over_laid(&laid, [5.0, 0.0], [6.5, 0.0], 0.45));
+        assert!(!over_laid([first, second], [5.0, 0.0], [6.5, 0.0], 0.45));
         // Across a gap between two strands a millimetre apart.
-        let apart = [
-            loop_strand(1, vec![[0.0, 0.0], [5.0, 0.0]]),
-            loop_strand(1, vec![[0.0, 2.0], [5.0, 2.0]]),
-        ];
-        assert!(!over_laid(&apart, [5.0, 0.0], [5.0, 2.0], 0.45));
-        assert!(!over_laid(&[], [0.0, 0.0], [1.0, 0.0], 0.45));
+        let far: &[[f64; 2]] = &[[0.0, 2.0], [5.0, 2.0]];
+        assert!(!over_laid([first, far], [5.0, 0.0], [5.0, 2.0], 0.45));
+        assert!(!over_laid([], [0.0, 0.0], [1.0, 0.0], 0.45));
     }
 
     #[test]
