@@ -548,90 +548,50 @@ fn wall_zone(walls: &[&Path]) -> WallZone {
 /// How far past a wall's bead a hole's edge point still runs along the wall (mm).
 const WALL_ZONE: f64 = 0.1;
 
-/// The external perimeters' segments bucketed on a grid: whether a point lies within
+/// The external perimeters' segments on the proof's grid: whether a point lies within
 /// [`WALL_ZONE`] of a wall's bead (its centreline within half its width, rounded to a
 /// micrometre as the footprints are, plus that). The same points as the wall footprint grown
 /// by [`WALL_ZONE`] holds, up to the arcs' chord tolerance (5 um), without buffering every
 /// wall of the layer and growing the union (a twelfth of a plate of bowls' time).
 struct WallZone {
-    cells: std::collections::HashMap<(i64, i64), Vec<u32>>,
-    /// (a, b, reach): a segment and how far from its line a point is on it.
-    segs: Vec<([f64; 2], [f64; 2], f64)>,
-    /// Segments too long to bucket (moves gone relative by a stray G91): asked every time.
-    long: Vec<u32>,
+    grid: super::proof::Grid,
+    /// The widest wall's reach: every segment holding a point lies this near it.
+    reach: f64,
 }
-
-/// Grid cell of a [`WallZone`] (mm).
-const WALL_CELL: f64 = 1.0;
-
-/// Longest segment a [`WallZone`] buckets (mm).
-const WALL_BUCKETED: f64 = 10_000.0;
 
 impl WallZone {
     fn new(walls: &[&Path]) -> WallZone {
-        let mut zone = WallZone {
-            cells: Default::default(),
-            segs: Vec::new(),
-            long: Vec::new(),
-        };
-        let cell = |v: f64| (v / WALL_CELL).floor() as i64;
+        let mut segs = Vec::new();
+        let mut widest = 0.0f64;
         for p in walls {
             if p.points.len() < 2 || !(p.width > 0.0 && p.width < 50.0) {
                 continue;
             }
             let half = (p.width * 1000.0).round() / 2000.0;
-            let reach = half + WALL_ZONE;
-            let around = (reach / WALL_CELL).ceil() as i64 + 1;
+            widest = widest.max(half);
             for w in p.points.windows(2) {
-                let (a, b) = (w[0], w[1]);
-                if !a.iter().chain(&b).all(|v| v.is_finite()) {
-                    continue;
-                }
-                let k = zone.segs.len() as u32;
-                zone.segs.push((a, b, reach));
-                let len = (b[0] - a[0]).hypot(b[1] - a[1]);
-                if len > WALL_BUCKETED {
-                    zone.long.push(k);
-                    continue;
-                }
-                // Cells round points every half cell along the segment; a cell gets it when
-                // any point of the cell can be within reach of it.
-                let n = (len / (WALL_CELL / 2.0)).ceil() as usize + 1;
-                for i in 0..=n {
-                    let t = i as f64 / n as f64;
-                    let (sx, sy) = (
-                        cell(a[0] + t * (b[0] - a[0])),
-                        cell(a[1] + t * (b[1] - a[1])),
-                    );
-                    for cx in sx - around..=sx + around {
-                        for cy in sy - around..=sy + around {
-                            let c = [(cx as f64 + 0.5) * WALL_CELL, (cy as f64 + 0.5) * WALL_CELL];
-                            let (_, q) = super::nearest_on_segment(c, a, b);
-                            if (q[0] - c[0]).hypot(q[1] - c[1]) <= reach + WALL_CELL * 0.75 {
-                                let v = zone.cells.entry((cx, cy)).or_default();
-                                if v.last() != Some(&k) {
-                                    v.push(k);
-                                }
-                            }
-                        }
-                    }
+                // A point that is no number would leave the grid empty.
+                if w.iter().flatten().all(|v| v.is_finite()) {
+                    segs.push(super::proof::Seg {
+                        a: w[0],
+                        b: w[1],
+                        half,
+                        role: p.role,
+                        loop_at: None,
+                    });
                 }
             }
         }
-        zone
+        WallZone {
+            grid: super::proof::Grid::new(segs),
+            reach: widest + WALL_ZONE,
+        }
     }
 
     fn contains(&self, x: f64, y: f64) -> bool {
-        let on = |k: &u32| {
-            let (a, b, reach) = self.segs[*k as usize];
-            let (_, q) = super::nearest_on_segment([x, y], a, b);
-            (q[0] - x).hypot(q[1] - y) <= reach
-        };
-        let key = (
-            (x / WALL_CELL).floor() as i64,
-            (y / WALL_CELL).floor() as i64,
-        );
-        self.cells.get(&key).is_some_and(|v| v.iter().any(on)) || self.long.iter().any(on)
+        self.grid.any_near([x, y], self.reach, |s| {
+            super::proof::dist2([x, y], s) <= (s.half + WALL_ZONE).powi(2)
+        })
     }
 }
 

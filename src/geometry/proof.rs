@@ -59,16 +59,17 @@ pub const NOTCH_AREA: f64 = 0.6;
 
 /// A segment of a strand's centerline with its half width.
 #[derive(Debug, Clone, Copy)]
-struct Seg {
-    a: [f64; 2],
-    b: [f64; 2],
-    half: f64,
-    role: Role,
+pub(super) struct Seg {
+    pub(super) a: [f64; 2],
+    pub(super) b: [f64; 2],
+    pub(super) half: f64,
+    pub(super) role: Role,
     /// Index of the external loop the segment belongs to, and its arc position (mm) there.
-    loop_at: Option<(u32, f64)>,
+    pub(super) loop_at: Option<(u32, f64)>,
 }
 
-fn dist2(q: [f64; 2], s: &Seg) -> f64 {
+/// Squared distance from `q` to the segment's centreline.
+pub(super) fn dist2(q: [f64; 2], s: &Seg) -> f64 {
     let (dx, dy) = (s.b[0] - s.a[0], s.b[1] - s.a[1]);
     let (px, py) = (q[0] - s.a[0], q[1] - s.a[1]);
     let len2 = dx * dx + dy * dy;
@@ -85,7 +86,7 @@ fn dist2(q: [f64; 2], s: &Seg) -> f64 {
 /// segment is cut into pieces no longer than a cell and entered in the cells of each piece's
 /// box.
 #[derive(Debug, Default)]
-struct Grid {
+pub(super) struct Grid {
     segs: Vec<Seg>,
     origin: [f64; 2],
     /// 1 / cell size (1/mm).
@@ -102,7 +103,7 @@ struct Grid {
 const MAX_CELLS: f64 = 4.0e6;
 
 impl Grid {
-    fn new(segs: Vec<Seg>) -> Grid {
+    pub(super) fn new(segs: Vec<Seg>) -> Grid {
         let mut b = [
             f64::INFINITY,
             f64::INFINITY,
@@ -171,7 +172,12 @@ impl Grid {
 
     /// Calls `f` with every segment entered in a cell within `reach` of `q`, until it
     /// returns true; whether it did.
-    fn any_near(&self, q: [f64; 2], reach: f64, mut f: impl FnMut(&Seg) -> bool) -> bool {
+    pub(super) fn any_near(
+        &self,
+        q: [f64; 2],
+        reach: f64,
+        mut f: impl FnMut(&Seg) -> bool,
+    ) -> bool {
         self.any_near_at(q, reach, |_, s| f(s))
     }
 
