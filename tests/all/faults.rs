@@ -257,7 +257,10 @@ fn an_interrupted_run_removes_its_temporary_file() {
     // Relative moves from a third of the way in: a slow file (half a second), so the run
     // is still writing when the signal comes.
     let (slow, _) = circ_with("G91");
-    for sig in [libc::SIGTERM, libc::SIGINT, libc::SIGHUP] {
+    let signals = [libc::SIGTERM, libc::SIGINT, libc::SIGHUP];
+    let (mut next, mut attempt) = (0, 0);
+    while next < signals.len() {
+        let sig = signals[next];
         let dir = tempfile::tempdir().unwrap();
         let f = dir.path().join("in.gcode");
         std::fs::write(&f, &slow).unwrap();
@@ -280,6 +283,12 @@ fn an_interrupted_run_removes_its_temporary_file() {
             std::thread::sleep(std::time::Duration::from_millis(2));
         }
         assert!(temp(), "no temporary file seen");
+        // On a loaded machine this thread may see the file late and the run end first: that
+        // run proves nothing, so it is made again (a run takes half a second).
+        if attempt < 5 && child.try_wait().unwrap().is_some() {
+            attempt += 1;
+            continue;
+        }
         // SAFETY: kill sends a signal to the child we spawned.
         unsafe { libc::kill(child.id() as libc::pid_t, sig) };
         let status = child.wait().unwrap();
@@ -290,6 +299,7 @@ fn an_interrupted_run_removes_its_temporary_file() {
             .collect();
         assert_eq!(names.len(), 1, "left behind: {names:?}");
         assert_eq!(std::fs::read(&f).unwrap(), slow.as_bytes());
+        next += 1;
     }
 }
 
