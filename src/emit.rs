@@ -1940,18 +1940,48 @@ impl<'a> PoaPass<'a> {
                 let grow = |p: &geo::Polygon<f64>| {
                     crate::geometry::offset(&MultiPolygon::new(vec![p.clone()]), widths.loop_width)
                 };
-                let mut near = vec![grow(&r.polygon)];
-                let mut joined = vec![false; left.len()];
-                // Each pass joins the floating regions next to what is joined so far.
-                loop {
-                    let mut grew = false;
-                    for (k, (_, f)) in left.iter().enumerate() {
-                        let joins = !joined[k]
-                            && f.kind == RegionKind::Floating
+                // The floating regions that may join. The grown outlines are made only when
+                // one exists: growing a region's outline (thousands of round-join points
+                // after the opening) cost as much as planning its loops, for nothing on
+                // most layers.
+                let candidate: Vec<bool> = left
+                    .iter()
+                    .map(|(_, f)| {
+                        f.kind == RegionKind::Floating
                             && self
                                 .opts
                                 .objects
                                 .allows(self.object_name(f.object).as_deref())
+                    })
+                    .collect();
+                // Joining starts from the region: with no candidate's box within a loop width
+                // of its box, none joins.
+                let reach = |f: &geo::Polygon<f64>| {
+                    use geo::BoundingRect;
+                    let (Some(a), Some(b)) = (r.polygon.bounding_rect(), f.bounding_rect()) else {
+                        return false;
+                    };
+                    let m = widths.loop_width + 1e-3;
+                    a.min().x - m <= b.max().x
+                        && b.min().x <= a.max().x + m
+                        && a.min().y - m <= b.max().y
+                        && b.min().y <= a.max().y + m
+                };
+                let mut near = Vec::new();
+                if candidate
+                    .iter()
+                    .zip(left.iter())
+                    .any(|(&c, (_, f))| c && reach(&f.polygon))
+                {
+                    near.push(grow(&r.polygon));
+                }
+                let mut joined = vec![false; left.len()];
+                // Each pass joins the floating regions next to what is joined so far.
+                while !near.is_empty() {
+                    let mut grew = false;
+                    for (k, (_, f)) in left.iter().enumerate() {
+                        let joins = !joined[k]
+                            && candidate[k]
                             && near.iter().any(|n| n.intersects(&f.polygon));
                         if joins {
                             joined[k] = true;
