@@ -1589,6 +1589,9 @@ pub struct PoaPass<'a> {
     /// The last layer this pass rewrote, read back from the bytes it wrote: what the layer
     /// above really stands on (moved perimeters, loops, cut and anchored ends).
     reread: Option<Layer>,
+    /// The index of the layer [`PoaPass::keep_below`] kept as read back (the newest of
+    /// `below_layers` then), if it did.
+    kept_reread: Option<usize>,
     config: SlicerConfig,
     /// What the pass did so far.
     pub report: ProcessReport,
@@ -1608,6 +1611,7 @@ impl<'a> PoaPass<'a> {
             wide_below: None,
             below_layers: std::collections::VecDeque::new(),
             reread: None,
+            kept_reread: None,
             config: config.clone(),
             report: ProcessReport::default(),
         }
@@ -1793,8 +1797,12 @@ impl<'a> PoaPass<'a> {
     /// rewrite judges the slicer's strand ends against it. A driver that does not call this
     /// gets no end trimming.
     pub fn keep_below(&mut self, layer: Layer) {
+        self.kept_reread = None;
         let mut kept = match self.reread.take() {
-            Some(r) if r.index == layer.index => r,
+            Some(r) if r.index == layer.index => {
+                self.kept_reread = Some(r.index);
+                r
+            }
             _ => layer,
         };
         // Only the strands are judged against.
@@ -1874,7 +1882,12 @@ impl<'a> PoaPass<'a> {
                     &crate::geometry::intersection(&wb.zones, &window),
                     strands,
                 );
-                match self.reread.as_ref().filter(|r| r.index == wb.index) {
+                // The layer below as read back went to `below_layers` when it was passed.
+                let back = self
+                    .below_layers
+                    .back()
+                    .filter(|r| r.index == wb.index && self.kept_reread == Some(wb.index));
+                match back {
                     Some(r) => {
                         let local = Layer {
                             paths: r

@@ -1408,3 +1408,64 @@ fn copies_on_a_plate_are_each_held_by_one_shared_plan() {
     );
     no_layer_worse("four mushrooms", &before, &after);
 }
+
+/// A wing's underside rises 1 mm over 22 mm: each layer's region reaches 2.6 mm past the
+/// one below, which poa rewrote with its external perimeter pulled in. The loops of each
+/// layer grew from the layer below as the slicer had it, the first one 0.08 mm past the
+/// moved perimeter's bead and in air (0.25 mm nozzle, 0.12 mm layers: 121 mm in air over
+/// 9 layers); they grow from the layer as rewritten and read back.
+#[test]
+fn a_wing_s_layers_grow_from_the_layer_below_as_rewritten() {
+    let fine = [
+        "--nozzle-diameter",
+        "0.25",
+        "--extrusion-width",
+        "0.27",
+        "--external-perimeter-extrusion-width",
+        "0.27",
+        "--perimeter-extrusion-width",
+        "0.27",
+        "--infill-extrusion-width",
+        "0.3",
+        "--solid-infill-extrusion-width",
+        "0.27",
+        "--top-infill-extrusion-width",
+        "0.25",
+        "--first-layer-extrusion-width",
+        "0.3",
+        "--layer-height",
+        "0.12",
+        "--first-layer-height",
+        "0.15",
+    ];
+    let Some(d) = slice("wing", &fine) else {
+        return;
+    };
+    let (new, rep) = rewrite(&d, BridgeMode::Auto);
+    let (before, after) = before_after("wing, 0.25 mm nozzle", &d, &new);
+    let wide: Vec<usize> = rep
+        .rewrites
+        .iter()
+        .filter(|r| !r.gradual && r.loops > 5)
+        .map(|r| r.layer)
+        .collect();
+    // Layers over a wide rewrite, themselves rewritten wide.
+    let over: Vec<usize> = wide
+        .iter()
+        .copied()
+        .filter(|l| wide.contains(&(l - 1)))
+        .collect();
+    assert!(over.len() >= 5, "{:?}", rep.rewrites);
+    for l in over {
+        let (b, a) = (&before.layers[l - 1], &after.layers[l - 1]);
+        assert!(
+            a.in_air_mm <= 0.5,
+            "layer {l} (Z {}): {:.1} mm in air, {:.1} as sliced",
+            b.z,
+            a.in_air_mm,
+            b.in_air_mm
+        );
+    }
+    held_up("wing, 0.25 mm nozzle", &before, &after, 5.0);
+    no_layer_worse("wing, 0.25 mm nozzle", &before, &after);
+}
