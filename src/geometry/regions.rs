@@ -439,8 +439,11 @@ fn describe(
     };
     let mut anchors = 0;
     let mut anchored_length = 0.0;
+    // The zone's boundary in a grid: every sample along the region's rings asks it (each
+    // `contains` walked all of a plate's cap's ring: a third of the region search).
+    let zone_index = super::RingIndex::new(&anchor_zone);
     for ring in std::iter::once(polygon.exterior()).chain(polygon.interiors()) {
-        let (n, len) = anchored_stretches(ring, &anchor_zone, min_stretch);
+        let (n, len) = anchored_stretches(ring, &zone_index, min_stretch);
         anchors += n;
         anchored_length += len;
     }
@@ -477,10 +480,10 @@ fn describe(
 /// `zone` (runs shorter than `min_len` ignored, the ring treated as cyclic) and their length.
 fn anchored_stretches(
     ring: &LineString<f64>,
-    zone: &MultiPolygon<f64>,
+    zone: &super::RingIndex,
     min_len: f64,
 ) -> (usize, f64) {
-    if zone.0.is_empty() || ring.0.len() < 3 {
+    if zone.is_empty() || ring.0.len() < 3 {
         return (0, 0.0);
     }
     // (inside, length of the sample's share of the ring)
@@ -491,8 +494,8 @@ fn anchored_stretches(
         let n = ((len / ANCHOR_STEP).ceil() as usize).max(1);
         for k in 0..n {
             let t = (k as f64 + 0.5) / n as f64;
-            let p = Point::new(a.x + (b.x - a.x) * t, a.y + (b.y - a.y) * t);
-            samples.push((zone.contains(&p), len / n as f64));
+            let p = [a.x + (b.x - a.x) * t, a.y + (b.y - a.y) * t];
+            samples.push((zone.contains_strictly(p), len / n as f64));
         }
     }
     if samples.iter().all(|s| s.0) {
@@ -587,6 +590,9 @@ fn max_distance(polygon: &Polygon<f64>, below: &MultiPolygon<f64>) -> f64 {
         tree.nearest_neighbor(p)
             .map_or(f64::INFINITY, |l| l.distance_2(p).sqrt())
     };
+    // Which grid points lie in the region, from its boundary in a grid (a point-in-polygon
+    // test walks every edge: a gradual cap's ring of thousands, 3600 times).
+    let inside = super::RingIndex::new(&MultiPolygon::new(vec![polygon.clone()]));
     let mut best: f64 = 0.0;
     for c in polygon.exterior().0.iter() {
         best = best.max(dist(&Point::from(*c)));
@@ -602,7 +608,7 @@ fn max_distance(polygon: &Polygon<f64>, below: &MultiPolygon<f64>) -> f64 {
             let mut x = x0 + step / 2.0;
             while x < x1 {
                 let p = Point::new(x, y);
-                if polygon.contains(&p) {
+                if inside.contains_strictly([x, y]) {
                     let d = dist(&p);
                     if d > best {
                         best = d;

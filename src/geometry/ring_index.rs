@@ -97,6 +97,69 @@ impl RingIndex {
         &self.items[self.start[c] as usize..self.start[c + 1] as usize]
     }
 
+    /// Whether `q` lies inside the set and off its boundary: what geo's `contains` answers
+    /// for a polygon set (its robust orientation test for the boundary, here only against
+    /// the segments of `q`'s cell, which hold every segment through `q`).
+    pub fn contains_strictly(&self, q: [f64; 2]) -> bool {
+        use geo::kernels::{Kernel, Orientation, RobustKernel};
+        if self.segs.is_empty() || !(q[0].is_finite() && q[1].is_finite()) {
+            return false;
+        }
+        let (hi_x, hi_y) = (
+            self.origin[0] + self.cell * self.nx as f64,
+            self.origin[1] + self.cell * self.ny as f64,
+        );
+        if q[0] < self.origin[0] || q[1] < self.origin[1] || q[0] > hi_x || q[1] > hi_y {
+            return false;
+        }
+        let c = self.row(q[1]) * self.nx + self.col(q[0]);
+        let p = geo::coord! {x: q[0], y: q[1]};
+        let on = self.cell_items(c).iter().any(|&i| {
+            let (a, b) = self.segs[i as usize];
+            q[0] >= a[0].min(b[0])
+                && q[0] <= a[0].max(b[0])
+                && q[1] >= a[1].min(b[1])
+                && q[1] <= a[1].max(b[1])
+                && RobustKernel::orient2d(
+                    geo::coord! {x: a[0], y: a[1]},
+                    geo::coord! {x: b[0], y: b[1]},
+                    p,
+                ) == Orientation::Collinear
+        });
+        if on {
+            return false;
+        }
+        // A ray to +x, each crossing decided by the robust orientation (a point 1e-16 off a
+        // slanted edge is where geo says it is) and each segment counted once, whichever of
+        // its cells it is met in.
+        let mut crossing: Vec<u32> = Vec::new();
+        let iy = self.row(q[1]);
+        for ix in self.col(q[0])..self.nx {
+            for &i in self.cell_items(iy * self.nx + ix) {
+                let (a, b) = self.segs[i as usize];
+                if (a[1] > q[1]) != (b[1] > q[1]) {
+                    let (u, v) = if a[1] > q[1] { (b, a) } else { (a, b) };
+                    let left = RobustKernel::orient2d(
+                        geo::coord! {x: u[0], y: u[1]},
+                        geo::coord! {x: v[0], y: v[1]},
+                        p,
+                    ) == Orientation::CounterClockwise;
+                    if left {
+                        crossing.push(i);
+                    }
+                }
+            }
+        }
+        crossing.sort_unstable();
+        crossing.dedup();
+        crossing.len() % 2 == 1
+    }
+
+    /// Whether the set has no boundary (no area).
+    pub fn is_empty(&self) -> bool {
+        self.segs.is_empty()
+    }
+
     /// Whether `q` lies inside the set (even-odd rule; a point on the boundary may go
     /// either way).
     pub fn contains(&self, q: [f64; 2]) -> bool {
@@ -231,5 +294,50 @@ mod tests {
         let iv = idx.inside_intervals(&[[2.0, 2.0], [8.0, 8.0]]);
         let inside: f64 = iv.iter().map(|(a, b)| b - a).sum();
         assert!((inside - 8f64.sqrt() * 2.0).abs() < 1e-9, "{iv:?}");
+    }
+
+    #[test]
+    fn strictly_inside_agrees_with_geo_on_and_off_the_boundary() {
+        use geo::Contains;
+        // A square with a hole and a slanted triangle: grid points fall on the horizontal and
+        // vertical edges and on the vertices; points on the slanted edge are made on it.
+        let mut outer = rect(0.0, 0.0, 10.0, 10.0);
+        outer.interiors_push(vec![
+            (4.0, 4.0),
+            (6.0, 4.0),
+            (6.0, 6.0),
+            (4.0, 6.0),
+            (4.0, 4.0),
+        ]);
+        let tri = geo::Polygon::new(
+            vec![(12.0, 0.0), (19.0, 3.0), (12.0, 7.0), (12.0, 0.0)].into(),
+            Vec::new(),
+        );
+        let set = mp(vec![outer, tri]);
+        let idx = RingIndex::new(&set);
+        let mut points: Vec<[f64; 2]> = Vec::new();
+        for i in -2..=42 {
+            for j in -2..=22 {
+                points.push([i as f64 * 0.5, j as f64 * 0.5]);
+            }
+        }
+        for k in 0..=20 {
+            let t = k as f64 / 20.0;
+            points.push([12.0 + 7.0 * t, 3.0 * t]);
+            points.push([19.0 - 7.0 * t, 3.0 + 4.0 * t]);
+            // And a few ulps either side of the slanted edges.
+            for d in [-4e-15, -1e-15, 1e-15, 4e-15] {
+                points.push([12.0 + 7.0 * t, 3.0 * t + d]);
+                points.push([19.0 - 7.0 * t + d, 3.0 + 4.0 * t]);
+            }
+        }
+        let mut on_boundary = 0;
+        for q in points {
+            let want = set.contains(&geo::Point::new(q[0], q[1]));
+            assert_eq!(idx.contains_strictly(q), want, "{q:?}");
+            on_boundary += usize::from(!want && idx.contains(q));
+        }
+        // Some boundary points the even-odd test alone takes for inside.
+        assert!(on_boundary > 0);
     }
 }
