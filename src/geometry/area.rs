@@ -375,7 +375,30 @@ pub fn area_from_footprint(
                 .iter()
                 .filter(|p| matches!(p.role, Role::ExternalPerimeter | Role::OverhangPerimeter))
                 .collect();
-            let inside = midpoints(layer, interior);
+            // In a hollow part (no sparse infill) solid infill holds its own footprint and no
+            // more: a strip of it along one wall of a hollow plate (where a fillet starts on
+            // its side) closed the plate's whole inside, which got loops over air (13 of
+            // them, 30 mm in air where the slicer left 1.6). Sparse infill still closes the
+            // hole it lies in (an object whose own settings give it infill).
+            let fp = if opts.hollow {
+                let solid: Vec<&Path> = layer
+                    .paths
+                    .iter()
+                    .filter(|p| interior(p.role) && p.role != Role::Infill)
+                    .collect();
+                if solid.is_empty() {
+                    fp
+                } else {
+                    BooleanOps::union(&fp, &footprint(solid))
+                }
+            } else {
+                fp
+            };
+            let inside = if opts.hollow {
+                midpoints(layer, |r| r == Role::Infill)
+            } else {
+                midpoints(layer, interior)
+            };
             // Islands that may stand in another's hole (a post inside a ring): their own
             // infill says nothing about the hole round them.
             let islands: Vec<(geo::Rect<f64>, Polygon<f64>)> =
@@ -1050,9 +1073,18 @@ mod tests {
             open.unsigned_area()
         );
         // Infill in it: closed all the same.
-        let mut filled = paths;
+        let mut filled = paths.clone();
         filled.push(path(Role::Infill, 0.45, &[[2.0, 0.8], [2.0, 19.2]]));
         assert!((printed_area(&layer(filled), &hollow).unsigned_area() - 400.0).abs() < 0.5);
+        // A strip of solid infill along one wall holds itself only: the inside stays open
+        // but for the strip's footprint (0.85 mm past the inner wall, 18.25 long).
+        let mut strip = paths;
+        for x in [1.1, 1.5] {
+            strip.push(path(Role::SolidInfill, 0.45, &[[x, 0.875], [x, 19.125]]));
+        }
+        let a = printed_area(&layer(strip), &hollow).unsigned_area();
+        let want = ring + 0.85 * 18.25;
+        assert!((a - want).abs() < 0.3, "{a} vs {want}");
     }
 
     #[test]

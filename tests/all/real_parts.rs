@@ -1469,3 +1469,33 @@ fn a_wing_s_layers_grow_from_the_layer_below_as_rewritten() {
     held_up("wing, 0.25 mm nozzle", &before, &after, 5.0);
     no_layer_worse("wing, 0.25 mm nozzle", &before, &after);
 }
+
+/// A hollow bracket (`fill_density = 0%`, one perimeter, no top layers): where the fillet
+/// starts, PrusaSlicer lays a strip of solid infill along the inside of the plate's wall.
+/// The strip holds itself, not the plate's empty inside: taken for the whole inside, the
+/// layer got 13 loops over the air in the plate (30.6 mm in air, 1.6 as sliced).
+#[test]
+fn solid_infill_in_a_hollow_part_holds_only_itself() {
+    let hollow = [
+        "--fill-density",
+        "0%",
+        "--perimeters",
+        "1",
+        "--top-solid-layers",
+        "0",
+        "--bottom-solid-layers",
+        "2",
+    ];
+    let Some(d) = slice("fillet_bracket", &hollow) else {
+        return;
+    };
+    let (new, _) = rewrite(&d, BridgeMode::Auto);
+    let (before, after) = before_after("hollow fillet bracket", &d, &new);
+    no_layer_worse("hollow fillet bracket", &before, &after);
+    assert!(
+        after.in_air_mm <= 0.1 * before.in_air_mm,
+        "{:.1} mm in air, {:.1} as sliced",
+        after.in_air_mm,
+        before.in_air_mm
+    );
+}
