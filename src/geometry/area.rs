@@ -761,12 +761,15 @@ mod tests {
     fn a_finely_divided_strand_has_the_footprint_of_its_chords() {
         // A 5 mm circle in 4000 segments (7.9 um each) at width 0.45: its footprint is the
         // annulus (area 2 pi r w), buffered from a few hundred chords within a micrometre.
-        let ring: Vec<[f64; 2]> = (0..=4000)
-            .map(|i| {
-                let a = std::f64::consts::TAU * i as f64 / 4000.0;
-                [5.0 * a.cos(), 5.0 * a.sin()]
-            })
-            .collect();
+        let circle = |n: usize| -> Vec<[f64; 2]> {
+            (0..=n)
+                .map(|i| {
+                    let a = std::f64::consts::TAU * i as f64 / n as f64;
+                    [5.0 * a.cos(), 5.0 * a.sin()]
+                })
+                .collect()
+        };
+        let ring = circle(4000);
         let s = Strands::of_lines([(&ring[..], 0.45)]);
         let kept: usize = s.0.values().flatten().map(|l| l.0.len()).sum();
         assert!(kept < 400, "{kept} points kept");
@@ -794,12 +797,7 @@ mod tests {
             );
         }
         // A slicer's polyline (segments of a few tenths) is kept as written.
-        let coarse: Vec<[f64; 2]> = (0..=100)
-            .map(|i| {
-                let a = std::f64::consts::TAU * i as f64 / 100.0;
-                [5.0 * a.cos(), 5.0 * a.sin()]
-            })
-            .collect();
+        let coarse = circle(100);
         let s = Strands::of_lines([(&coarse[..], 0.45)]);
         assert_eq!(
             s.0.values().flatten().map(|l| l.0.len()).sum::<usize>(),
