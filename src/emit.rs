@@ -2761,12 +2761,7 @@ mod tests {
             }
         }
         let config = SlicerConfig::parse(g.as_bytes());
-        let opts = ProcessOptions {
-            detect: crate::report::detect_options(&config),
-            settings: PoaSettings::default(),
-            objects: ObjectFilter::default(),
-            header: "; poa test".into(),
-        };
+        let opts = test_options(&config);
         assert!(g.len() > 2 * EMIT_AHEAD_BYTES);
         let (tx, rx) = std::sync::mpsc::channel();
         std::thread::spawn(move || {
@@ -2777,6 +2772,16 @@ mod tests {
             .recv_timeout(std::time::Duration::from_secs(120))
             .expect("process returned");
         assert_eq!(r.unwrap_err(), "disk full");
+    }
+
+    /// The default options for `config`'s file, as `poa process` makes them.
+    fn test_options(config: &SlicerConfig) -> ProcessOptions {
+        ProcessOptions {
+            detect: crate::report::detect_options(config),
+            settings: PoaSettings::default(),
+            objects: ObjectFilter::default(),
+            header: "; poa test".into(),
+        }
     }
 
     #[test]
@@ -2794,12 +2799,7 @@ mod tests {
         }
         let with_total = |g: &str| -> ProcessReport {
             let config = SlicerConfig::parse(g.as_bytes());
-            let opts = ProcessOptions {
-                detect: crate::report::detect_options(&config),
-                settings: PoaSettings::default(),
-                objects: ObjectFilter::default(),
-                header: "; poa test".into(),
-            };
+            let opts = test_options(&config);
             let mut out = Vec::new();
             process(g.as_bytes(), config, &opts, &mut out).unwrap()
         };

@@ -261,8 +261,8 @@ mod tests {
     use super::*;
     use crate::geometry::testutil::{mp, rect};
 
-    #[test]
-    fn points_and_stretches_inside_a_square_with_a_hole() {
+    /// A 10 mm square with a 2 mm square hole in its middle.
+    fn square_with_hole() -> geo::Polygon<f64> {
         let mut outer = rect(0.0, 0.0, 10.0, 10.0);
         outer.interiors_push(vec![
             (4.0, 4.0),
@@ -271,6 +271,12 @@ mod tests {
             (4.0, 6.0),
             (4.0, 4.0),
         ]);
+        outer
+    }
+
+    #[test]
+    fn points_and_stretches_inside_a_square_with_a_hole() {
+        let outer = square_with_hole();
         let set = mp(vec![outer]);
         let idx = RingIndex::new(&set);
         assert!(idx.contains([1.0, 1.0]));
@@ -301,14 +307,7 @@ mod tests {
         use geo::Contains;
         // A square with a hole and a slanted triangle: grid points fall on the horizontal and
         // vertical edges and on the vertices; points on the slanted edge are made on it.
-        let mut outer = rect(0.0, 0.0, 10.0, 10.0);
-        outer.interiors_push(vec![
-            (4.0, 4.0),
-            (6.0, 4.0),
-            (6.0, 6.0),
-            (4.0, 6.0),
-            (4.0, 4.0),
-        ]);
+        let outer = square_with_hole();
         let tri = geo::Polygon::new(
             vec![(12.0, 0.0), (19.0, 3.0), (12.0, 7.0), (12.0, 0.0)].into(),
             Vec::new(),
