@@ -214,11 +214,23 @@ impl SlicerConfig {
     /// Whether the 1.75 mm of [`SlicerConfig::filament_diameter`] is a guess: the file (or
     /// the environment) states no diameter, nor is E volumetric or Cura's Griffin flavour.
     pub fn filament_diameter_unstated(&self) -> bool {
+        self.diameter_assumed(1.75)
+    }
+
+    /// Whether the 2.85 mm of [`SlicerConfig::filament_diameter`] is Cura's Griffin flavour's
+    /// (nothing states a diameter): a Griffin file sliced for another printer may be in
+    /// 1.75 mm filament.
+    pub fn filament_diameter_griffin_assumed(&self) -> bool {
+        self.diameter_assumed(2.85)
+    }
+
+    /// Nothing states the filament diameter, E is not volumetric, and `d` is what is assumed.
+    fn diameter_assumed(&self, d: f64) -> bool {
         self.number("filament_diameter")
             .filter(|d| (0.5..=5.0).contains(d))
             .is_none()
             && !self.volumetric_e()
-            && self.filament_diameter() == 1.75
+            && self.filament_diameter() == d
     }
 
     pub fn nozzle_diameter(&self) -> f64 {

@@ -70,7 +70,7 @@ pub fn open(path: &Path) -> Result<Opened> {
         config.add_text(&tail);
     }
     config.apply_env(std::env::vars());
-    if config.filament_diameter_unstated() {
+    if config.filament_diameter_unstated() || config.filament_diameter_griffin_assumed() {
         file.seek(SeekFrom::Start(0)).map_err(read_err)?;
         infer_filament_diameter(&mut file, &mut config).map_err(read_err)?;
     }
@@ -146,7 +146,20 @@ pub fn infer_filament_diameter<R: Read>(
     // Same bead, 2.65 times the cross-section: the flow model's rounded ends stay.
     let ends = h * (1.0 - std::f64::consts::FRAC_PI_4);
     let w285 = (w175 - ends) * filament_area(2.85) / area + ends;
-    if w175 < 0.55 * nozzle && (0.7 * nozzle..=1.8 * nozzle).contains(&w285) {
+    if config.filament_diameter_griffin_assumed() {
+        // The other way round: Cura's Griffin flavour set on a printer that takes 1.75 mm
+        // filament (an Ender 3 profile) read as 2.85 mm gives walls 2.65 times too wide, and
+        // poa's loops as wide (a mushroom's cap: 26 loops for 58) with 0.38 of the flow.
+        if w285 > 1.8 * nozzle && (0.7 * nozzle..=1.8 * nozzle).contains(&w175) {
+            config.infer(
+                "filament_diameter",
+                "1.75",
+                format!(
+                    "the file states no filament diameter and Cura's Griffin flavour means 2.85 mm, but its walls read {w285:.2} mm wide at 2.85 mm and {w175:.2} mm at 1.75 mm (nozzle {nozzle} mm): E is read as 1.75 mm filament (set SLIC3R_FILAMENT_DIAMETER to say otherwise)"
+                ),
+            );
+        }
+    } else if w175 < 0.55 * nozzle && (0.7 * nozzle..=1.8 * nozzle).contains(&w285) {
         config.infer(
             "filament_diameter",
             "2.85",
@@ -419,6 +432,20 @@ mod tests {
             }
         }
         g
+    }
+
+    /// Cura's Griffin flavour means 2.85 mm filament unless the walls read far too wide at
+    /// it and right at 1.75 mm.
+    #[test]
+    fn a_griffin_file_in_1_75_mm_filament_is_told_from_its_walls() {
+        for (diameter, read) in [(1.75, 1.75), (2.85, 2.85)] {
+            let text = walls(diameter).replace(";FLAVOR:Marlin", ";FLAVOR:Griffin");
+            let mut config = SlicerConfig::parse(text.as_bytes());
+            assert!(config.filament_diameter_griffin_assumed());
+            infer_filament_diameter(text.as_bytes(), &mut config).unwrap();
+            assert_eq!(config.filament_diameter(), read, "{diameter}");
+            assert_eq!(config.inferred().len(), usize::from(read == 1.75));
+        }
     }
 
     #[test]

@@ -201,26 +201,43 @@ fn volumetric_loops(data: &[u8]) {
 /// A Cura file for a 2.85 mm filament printer of Marlin flavour states no diameter: read as
 /// 1.75 mm filament its walls come out 0.4 of the nozzle wide, so poa reads it as 2.85 mm
 /// filament, says so, and lays its loops with the slicer's flow (read as 1.75 mm they
-/// carried 2.65 times the plastic). A 1.75 mm file is read as it is.
+/// carried 2.65 times the plastic). A 1.75 mm file is read as it is, and so is one of Cura's
+/// Griffin flavour (2.85 mm unless stated) whose walls read right only at 1.75 mm.
 #[test]
 fn an_unstated_2_85_mm_filament_is_read_from_the_walls() {
     let dir = tempfile::tempdir().unwrap();
-    for (diameter, inferred) in [("2.85", true), ("1.75", false)] {
-        let setting = format!("material_diameter={diameter}");
-        let Some(d) = slice_cura(&part("rect_overhang"), "creality_ender3", &[&setting]) else {
+    // Cura's Griffin flavour (Ultimaker 3 and S-line) means 2.85 mm filament; set on an
+    // Ender 3's profile its E is for 1.75 mm: read as 2.85 mm, the walls came out 2.65
+    // times too wide, a mushroom's cap got 26 loops for 58, the loops 0.38 of the flow.
+    for (diameter, flavor, said) in [
+        ("2.85", "Marlin", Some("E is read as 2.85 mm filament")),
+        ("1.75", "Marlin", None),
+        ("1.75", "Griffin", Some("E is read as 1.75 mm filament")),
+    ] {
+        let settings = [
+            format!("material_diameter={diameter}"),
+            format!("machine_gcode_flavor={flavor}"),
+        ];
+        let settings: Vec<&str> = settings.iter().map(String::as_str).collect();
+        let Some(d) = slice_cura(&part("rect_overhang"), "creality_ender3", &settings) else {
             return;
         };
-        let f = dir.path().join(format!("d{diameter}.gcode"));
+        let inferred = said.is_some();
+        let f = dir.path().join(format!("d{diameter}{flavor}.gcode"));
         std::fs::write(&f, &d).unwrap();
         let o = poa().arg("info").arg(&f).output().unwrap();
         assert!(o.status.success());
         let text = String::from_utf8_lossy(&o.stdout);
         assert_eq!(
-            text.contains("E is read as 2.85 mm filament"),
+            text.contains("E is read as"),
             inferred,
             "{diameter} mm: {text}"
         );
-        let out = dir.path().join(format!("d{diameter}.poa.gcode"));
+        assert!(
+            said.is_none_or(|s| text.contains(s)),
+            "{diameter} mm: {text}"
+        );
+        let out = dir.path().join(format!("d{diameter}{flavor}.poa.gcode"));
         let o = poa_to("process", &f, &out, &[]);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         assert_eq!(
