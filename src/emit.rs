@@ -581,8 +581,10 @@ struct Tail {
 
 /// How far from a zone's box a sparse-infill end is "beside the region" (mm).
 const TAIL_NEAR: f64 = 10.0;
-/// Longest dangling end handled (mm): a longer one is not a stray end of a strand.
-const TAIL_MAX: f64 = 5.0;
+/// Longest dangling end handled (mm): a longer one is not a stray end of a strand. The
+/// last strand of a bridge PrusaSlicer anchors over sparse infill runs up to about 6 mm from
+/// the perimeter it turned on to where it stops over a gap of the infill below.
+const TAIL_MAX: f64 = 8.0;
 /// Shortest dangling end handled (mm): shorter ones are one sample of the check.
 const TAIL_MIN: f64 = 0.15;
 /// Longest anchor drawn from a dangling end to material that holds it, in bead widths: the

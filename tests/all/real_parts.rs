@@ -314,6 +314,28 @@ fn two_shelves_with_holes() {
     judge("shelves_hole");
 }
 
+/// PrusaSlicer anchors each step's bridge over the block's sparse infill, and the last strand
+/// of it ends 6 mm past the perimeter over a gap of the gyroid below: held by an anchor, the
+/// first floating layer keeps under 1 mm in air.
+#[test]
+fn a_stepped_ledge_s_bridge_ends_beside_it_are_held() {
+    for (what, before, after) in judge("steps_over") {
+        let first = before
+            .layers
+            .iter()
+            .position(|l| l.in_air_mm > 20.0)
+            .unwrap_or_else(|| panic!("{what}: no floating layer"));
+        assert!(
+            after.layers[first].in_air_mm <= 1.0,
+            "{what}: first floating layer {} keeps {:.1} mm in air ({:.1} before)",
+            first + 1,
+            after.layers[first].in_air_mm,
+            before.layers[first].in_air_mm
+        );
+        cut_to(&what, &before, &after, 0.1);
+    }
+}
+
 #[test]
 fn the_paper_shapes_sliced_by_both() {
     for name in ["rect_overhang", "circ_overhang", "tri_overhang"] {
