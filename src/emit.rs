@@ -247,6 +247,15 @@ fn median_wall_width(layer: &Layer) -> Option<f64> {
 /// (Bowden printers retract up to about 10 mm).
 const MAX_RETRACTION: f64 = 20.0;
 
+/// Where a gradual overhang's block goes in the slicer's wall that crosses its zone.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BlockPlace {
+    /// Where the wall enters the zone, ending where it leaves it: no travel out and back.
+    AtEntry,
+    /// Before the wall's move that enters the zone, returning to its start.
+    BeforeMove,
+}
+
 /// Rewrites one layer. Returns the new bytes and per-region statistics.
 ///
 /// Long by design: one pass over the layer's lines with the splice state (where the nozzle really is, open blocks, tags) that every branch updates; the branches themselves call helpers.
@@ -257,6 +266,7 @@ pub fn rewrite_layer(
     rewrites: &[RegionRewrite],
     motion: &Motion,
     settings: &PoaSettings,
+    place: BlockPlace,
 ) -> (Vec<u8>, Vec<RewriteStats>) {
     let Some(start) = layer.start.as_deref() else {
         return (layer.raw.clone(), Vec::new());
@@ -293,6 +303,28 @@ pub fn rewrite_layer(
         .collect();
     // The lines of external perimeters, where a gradual overhang's block goes.
     let perimeter_lines = wall_lines(layer);
+    // Where the slicer's wall, after first entering a gradual overhang's zone, leaves it:
+    // the block goes in where the wall enters and ends here, where the wall goes on (written
+    // before the wall, it went out and back and the wall then jumped the zone: a 9 mm ring
+    // on a 60 degree arm took 20 mm of travel, a retraction and a lift each way).
+    let exits: Vec<Option<[f64; 2]>> = rewrites
+        .iter()
+        .zip(&zone_index)
+        .map(|(r, index)| {
+            if !r.plan.with_perimeter {
+                return None;
+            }
+            layer
+                .paths
+                .iter()
+                .filter(|p| matches!(p.role, Role::ExternalPerimeter | Role::OverhangPerimeter))
+                .find_map(|p| {
+                    inside_intervals(&p.points, index)
+                        .first()
+                        .map(|&(_, b)| point_at(&p.points, b))
+                })
+        })
+        .collect();
     let tails = if below.is_empty() {
         Vec::new()
     } else {
@@ -384,10 +416,21 @@ pub fn rewrite_layer(
         }
         if let Some((m, pts, hits, cut)) = crossing {
             let on_perimeter = perimeter_lines.binary_search(&number).is_ok();
+            // Gradual overhangs' blocks written where this move enters the zone.
+            let mut at_entry: Vec<usize> = Vec::new();
             for (i, _) in &hits {
                 if !done[*i] && (on_perimeter || !rewrites[*i].plan.with_perimeter) {
                     done[*i] = true;
                     stats[*i].inserted_before_line = number;
+                    if place == BlockPlace::AtEntry
+                        && exits[*i].is_some()
+                        && m.arc.is_none()
+                        && !before.xyz_relative()
+                        && !before.is_retracted()
+                    {
+                        at_entry.push(*i);
+                        continue;
+                    }
                     resync(&mut out, nl, &before, &mut real, motion);
                     emit_block(
                         &mut out,
@@ -398,6 +441,7 @@ pub fn rewrite_layer(
                         settings,
                         &tags,
                         &mut stats[*i],
+                        None,
                     );
                 }
             }
@@ -408,8 +452,35 @@ pub fn rewrite_layer(
             }
             all.sort_by(|a, b| a.0.total_cmp(&b.0));
             let all = merge_intervals(all);
+            let mut entry = |out: &mut Vec<u8>, state: &Machine| {
+                let mut state = state.snapshot();
+                for &i in &at_entry {
+                    let end = emit_block(
+                        out,
+                        nl,
+                        &state,
+                        rewrites[i],
+                        motion,
+                        settings,
+                        &tags,
+                        &mut stats[i],
+                        exits[i],
+                    );
+                    state = state.partway(end, state.e_logical(), state.feedrate());
+                }
+                [state.position()[0], state.position()[1]]
+            };
             let (len, e) = split_move(
-                &mut out, nl, &mut real, motion, &before, &m, &pts, &all, content,
+                &mut out,
+                nl,
+                &mut real,
+                motion,
+                &before,
+                &m,
+                &pts,
+                &all,
+                content,
+                (!at_entry.is_empty()).then_some(&mut entry as &mut EntryBlock),
             );
             // A cut end alone counts for the region it lies beside.
             let owners: Vec<usize> = if hits.is_empty() {
@@ -468,6 +539,7 @@ pub fn rewrite_layer(
                 settings,
                 &tags,
                 &mut stats[i],
+                None,
             );
         }
     }
@@ -1006,6 +1078,7 @@ fn split_move(
     pts: &[[f64; 2]],
     inside: &[(f64, f64)],
     original: &[u8],
+    mut entry: Option<&mut EntryBlock>,
 ) -> (f64, f64) {
     let total = polyline_length(pts);
     let per_mm = m.e / total;
@@ -1021,6 +1094,22 @@ fn split_move(
     let mut removed = (0.0, 0.0);
     for (p, len, ins) in pieces(pts, inside) {
         if ins {
+            if let Some(block) = entry.take() {
+                // Written here, where the move enters the zone: the nozzle stays where the
+                // block ends.
+                let pen = w.pen();
+                let state = before.partway([pen.pos[0], pen.pos[1]], pen.e, pen.feed.0);
+                let end = block(out, &state);
+                w = Writer::resume(
+                    out,
+                    nl,
+                    crate::writer::Pen {
+                        pos: [end[0], end[1], pen.pos[2]],
+                        ..pen
+                    },
+                );
+                *real = Some(end);
+            }
             if real.is_none() {
                 let p = w.position();
                 *real = Some([p[0], p[1]]);
@@ -1045,7 +1134,14 @@ fn split_move(
     removed
 }
 
-/// Writes one region's strands, leaving the machine as `before` had it.
+/// What writes the blocks that go where a rewritten move enters a zone, from the state
+/// there; returns where the nozzle is left.
+type EntryBlock<'a> = dyn FnMut(&mut Vec<u8>, &Machine) -> [f64; 2] + 'a;
+
+/// Writes one region's strands, leaving the machine as `before` had it; with `exit`, a
+/// gradual overhang's block written where the wall enters its zone, the nozzle is left where
+/// the block ends, as near `exit` (where the wall leaves the zone) as the strands' order
+/// allows. Returns where the nozzle is left.
 ///
 /// Long by design: writes one region's block top to bottom (approach, fan and temperature, strands, restore) in print order, so that what is set and what is restored read side by side.
 #[allow(clippy::too_many_arguments)]
@@ -1058,7 +1154,8 @@ fn emit_block(
     settings: &PoaSettings,
     tags: &Tags,
     stats: &mut RewriteStats,
-) {
+    exit: Option<[f64; 2]>,
+) -> [f64; 2] {
     let mut w = Writer::new(out, nl, before);
     let t = &motion.travel;
     let home = [before.position()[0], before.position()[1]];
@@ -1075,8 +1172,32 @@ fn emit_block(
     // did): no travel there and back for a block of one strand.
     let reordered;
     let plan = if rewrite.plan.with_perimeter {
+        let from_home = crate::poa::reorder_from(&rewrite.plan.strands, home);
+        // Written in place, the block may instead start at the far end of its ring and end
+        // where the wall goes on (a loop and the perimeter back over it end where they
+        // began): the hop in goes without retraction, the one out after the block with it.
+        let strands = match exit {
+            Some(x) => {
+                let from_exit = crate::poa::reorder_from(&rewrite.plan.strands, x);
+                let d2 = |a: [f64; 2], b: [f64; 2]| (a[0] - b[0]).hypot(a[1] - b[1]);
+                let cost = |s: &[Strand]| match (s.first(), s.last()) {
+                    (Some(a), Some(b)) => match (a.points.first(), b.points.last()) {
+                        // The hop out counts twice: it goes with retraction and lift.
+                        (Some(&p), Some(&q)) => d2(home, p) + 2.0 * d2(q, x),
+                        _ => f64::INFINITY,
+                    },
+                    _ => f64::INFINITY,
+                };
+                if cost(&from_exit) <= cost(&from_home) {
+                    from_exit
+                } else {
+                    from_home
+                }
+            }
+            None => from_home,
+        };
         reordered = Plan {
-            strands: crate::poa::reorder_from(&rewrite.plan.strands, home),
+            strands,
             ..rewrite.plan.clone()
         };
         &reordered
@@ -1215,14 +1336,16 @@ fn emit_block(
         w.hotend(c);
     }
     w.fan(before.fan, true);
-    travel += dist(w.position(), home);
-    if was_retracted {
-        w.retract(t, pulled);
-        w.set_feed(t.travel_speed);
-        w.move_to(home);
-    } else {
-        let d = dist(w.position(), home);
-        w.travel(t, home, d > hop);
+    if exit.is_none() {
+        travel += dist(w.position(), home);
+        if was_retracted {
+            w.retract(t, pulled);
+            w.set_feed(t.travel_speed);
+            w.move_to(home);
+        } else {
+            let d = dist(w.position(), home);
+            w.travel(t, home, d > hop);
+        }
     }
     time += t.travel_time(travel);
     if (w.position()[2] - before.position()[2]).abs() > 1e-9 {
@@ -1242,6 +1365,8 @@ fn emit_block(
     w.line(";POA_END");
     stats.travel_mm += travel;
     stats.time_added_s += time;
+    let end = w.position();
+    [end[0], end[1]]
 }
 
 /// Whether the loop strand `next` is reached from the end of `prev` by an extruded connector
@@ -2201,10 +2326,10 @@ impl PoaPass<'_> {
                 crate::geometry::rewritten_area(area(), &zones, strands),
             ))
         };
-        let rewritten =
-            if rewrites.is_empty() {
-                None
-            } else {
+        let rewritten = if rewrites.is_empty() {
+            None
+        } else {
+            let attempt = |place: BlockPlace| {
                 let (bytes, stats) = rewrite_layer(
                     layer,
                     &below,
@@ -2212,6 +2337,7 @@ impl PoaPass<'_> {
                     &rewrites,
                     &self.motion,
                     &self.opts.settings,
+                    place,
                 );
                 // The layer read back, and the estimator's time for it as rewritten and as
                 // sliced, side by side: on a plate's first floating layer each is a few
@@ -2226,83 +2352,102 @@ impl PoaPass<'_> {
                         new - old
                     },
                 );
-                // Judged where a plan moves the outline (a gradual overhang's, or one on a layer
-                // whose own support moved), and where the zones are small: the wide plans of a
-                // first floating layer grow from the wall below and cost a plate's worth of
-                // samples to judge, while small ones cost little and can do worse than the slicer
-                // (a lettering's strokes on a wall, outer wall first: 0 -> 2.3 mm in air).
-                let judged = above_rewrite
-                    || rewrites
-                        .iter()
-                        .any(|r| r.plan.with_perimeter || r.plan.ladder)
-                    || rewrites
-                        .iter()
-                        .map(|r| geo::Area::unsigned_area(&r.plan.zone))
-                        .sum::<f64>()
-                        < JUDGED_AREA;
-                if let Some(worse) = back.as_ref().filter(|_| judged).and_then(|b| {
+                (bytes, stats, back, planned)
+            };
+            // Judged where a plan moves the outline (a gradual overhang's, or one on a layer
+            // whose own support moved), and where the zones are small: the wide plans of a
+            // first floating layer grow from the wall below and cost a plate's worth of
+            // samples to judge, while small ones cost little and can do worse than the slicer
+            // (a lettering's strokes on a wall, outer wall first: 0 -> 2.3 mm in air).
+            let judged = above_rewrite
+                || rewrites
+                    .iter()
+                    .any(|r| r.plan.with_perimeter || r.plan.ladder)
+                || rewrites
+                    .iter()
+                    .map(|r| geo::Area::unsigned_area(&r.plan.zone))
+                    .sum::<f64>()
+                    < JUDGED_AREA;
+            let worse = |back: &Option<Layer>| {
+                back.as_ref().filter(|_| judged).and_then(|b| {
                     self.worse_in_air(&below, b, sliced_window.zip(sliced().as_ref()))
-                }) {
-                    // Never worse than the slicer: the layer goes out as sliced.
-                    for r in &rewrites {
-                        self.report.skipped.push(SkippedRegion {
-                            region: r.id,
-                            layer: layer.index + 1,
-                            kind: r.kind,
-                            reason: format!(
-                                "rewritten, the layer would print {:.1} mm in air, {:.1} as sliced",
-                                worse.1, worse.0
-                            ),
-                        });
-                    }
-                    self.rewritten_below = None;
-                    self.reread = None;
-                    self.limits.track_limits(&layer.raw);
-                    self.note_wall_width(layer);
-                    return Ok(None);
+                })
+            };
+            let (mut bytes, mut stats, mut back, mut planned) = attempt(BlockPlace::AtEntry);
+            let mut verdict = worse(&back);
+            // Written where the wall enters its zone, a gradual overhang's block follows
+            // the wall's stretch before it, whose end then has nothing of the block to lean
+            // on (a cup handle's ring by Cura: 0.4 mm in air, and the rings above it left as
+            // sliced): before the wall, as a block that goes out and back, it may do.
+            if verdict.is_some() && rewrites.iter().any(|r| r.plan.with_perimeter) {
+                let again = attempt(BlockPlace::BeforeMove);
+                let second = worse(&again.2);
+                if second.is_none() {
+                    (bytes, stats, back, planned) = again;
+                    verdict = None;
                 }
-                self.account(planned, stats);
-                self.reread = back;
-                // A layer whose only rewrites are ladders prints the strips the slicer printed:
-                // the layer above is planned on it as detected.
-                if !moves_outline && rewrites.iter().any(|r| !r.plan.ladder) {
-                    self.wide_below = Some(WideBelow {
-                        index: layer.index,
-                        area: area().clone().into_owned(),
-                        zones: zones.clone(),
-                        strands: rewrites
-                            .iter()
-                            .flat_map(|r| r.plan.strands.iter())
-                            .map(|s| (s.points.clone(), s.width))
-                            .collect(),
+            }
+            if let Some(worse) = verdict {
+                // Never worse than the slicer: the layer goes out as sliced.
+                for r in &rewrites {
+                    self.report.skipped.push(SkippedRegion {
+                        region: r.id,
+                        layer: layer.index + 1,
+                        kind: r.kind,
+                        reason: format!(
+                            "rewritten, the layer would print {:.1} mm in air, {:.1} as sliced",
+                            worse.1, worse.0
+                        ),
                     });
                 }
-                // The layer above is planned on what this layer prints as written: the area
-                // made from the plan alone keeps, in places, the slicer's perimeter that the
-                // splice took out (an edge a loop above then grew from, in air).
-                if let (Some((i, below_area)), Some(r)) = (&self.rewritten_below, &self.reread) {
-                    if *i == layer.index {
-                        // Away from the zones the layer is the slicer's: its area as detected
-                        // there (read back, strands cut at a zone's edge can split the infill's
-                        // outline into pockets the hole rule leaves open, and the layer above
-                        // found a honeycomb's cells over air, layer after layer).
-                        let away = crate::geometry::difference(
-                            area(),
-                            &crate::geometry::margin(&zones, AWAY_FROM_ZONES),
-                        );
-                        let printed = crate::geometry::union(
-                            &crate::geometry::printed_area(r, &self.opts.detect.area),
-                            &away,
-                        );
-                        let rewritten = crate::geometry::intersection(
-                            below_area,
-                            &crate::geometry::offset(&printed, REREAD_SLACK),
-                        );
-                        self.rewritten_below = Some((*i, rewritten));
-                    }
+                self.rewritten_below = None;
+                self.reread = None;
+                self.limits.track_limits(&layer.raw);
+                self.note_wall_width(layer);
+                return Ok(None);
+            }
+            self.account(planned, stats);
+            self.reread = back;
+            // A layer whose only rewrites are ladders prints the strips the slicer printed:
+            // the layer above is planned on it as detected.
+            if !moves_outline && rewrites.iter().any(|r| !r.plan.ladder) {
+                self.wide_below = Some(WideBelow {
+                    index: layer.index,
+                    area: area().clone().into_owned(),
+                    zones: zones.clone(),
+                    strands: rewrites
+                        .iter()
+                        .flat_map(|r| r.plan.strands.iter())
+                        .map(|s| (s.points.clone(), s.width))
+                        .collect(),
+                });
+            }
+            // The layer above is planned on what this layer prints as written: the area
+            // made from the plan alone keeps, in places, the slicer's perimeter that the
+            // splice took out (an edge a loop above then grew from, in air).
+            if let (Some((i, below_area)), Some(r)) = (&self.rewritten_below, &self.reread) {
+                if *i == layer.index {
+                    // Away from the zones the layer is the slicer's: its area as detected
+                    // there (read back, strands cut at a zone's edge can split the infill's
+                    // outline into pockets the hole rule leaves open, and the layer above
+                    // found a honeycomb's cells over air, layer after layer).
+                    let away = crate::geometry::difference(
+                        area(),
+                        &crate::geometry::margin(&zones, AWAY_FROM_ZONES),
+                    );
+                    let printed = crate::geometry::union(
+                        &crate::geometry::printed_area(r, &self.opts.detect.area),
+                        &away,
+                    );
+                    let rewritten = crate::geometry::intersection(
+                        below_area,
+                        &crate::geometry::offset(&printed, REREAD_SLACK),
+                    );
+                    self.rewritten_below = Some((*i, rewritten));
                 }
-                Some(bytes)
-            };
+            }
+            Some(bytes)
+        };
         self.limits.track_limits(&layer.raw);
         self.note_wall_width(layer);
         Ok(rewritten)

@@ -303,6 +303,18 @@ impl Machine {
         self.pos[1] += d[1];
     }
 
+    /// The modal state partway along a move as it is being rewritten: the nozzle at `xy` (Z
+    /// kept), the E counter at `e_logical` and the feedrate `feed` (mm/min). A block written
+    /// where a rewritten move enters a region starts from it.
+    pub fn partway(&self, xy: [f64; 2], e_logical: f64, feed: f64) -> Machine {
+        Machine {
+            pos: [xy[0], xy[1], self.pos[2]],
+            e_logical,
+            feed,
+            ..self.snapshot()
+        }
+    }
+
     /// A copy of the modal state without the diagnostics gathered so far: what a later stage
     /// needs to re-interpret a stretch of lines from here.
     pub fn snapshot(&self) -> Machine {
