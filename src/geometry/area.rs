@@ -61,6 +61,16 @@ const DENSE_SPACING: f64 = 0.02;
 /// How far (mm) that simplification may move a dense polyline.
 const DENSE_SIMPLIFY: f64 = 0.001;
 
+/// Side (mm) of the cells [`Strands::crowded`] counts.
+const CROWD_CELL: f64 = 1.0;
+
+/// How many times the area of the cells they pass through strands' beads may cover before
+/// they are buffered by Clipper instead (a solid layer covers its cells about once).
+const CROWDED: f64 = 4.0;
+
+/// Most cell visits [`Strands::crowded`] makes before it calls strands crowded.
+const MAX_CROWD_VISITS: usize = 5_000_000;
+
 /// The centerlines a footprint is buffered from, by width: everything a footprint depends
 /// on. Two layers with equal `Strands` (a vertical wall repeats its perimeters exactly) have
 /// the same footprint, computed once.
@@ -130,6 +140,9 @@ impl Strands {
     }
 
     fn buffer_whole(&self) -> MultiPolygon<f64> {
+        if self.crowded() {
+            return self.buffer_crowded();
+        }
         let mut parts: Vec<MultiPolygon<f64>> = Vec::new();
         for (key, lines) in &self.0 {
             let half = *key as f64 / 2000.0;
@@ -143,6 +156,61 @@ impl Strands {
             1 => parts.pop().unwrap_or_else(|| MultiPolygon::new(Vec::new())),
             _ => unary_union(parts.iter().flat_map(|m| m.0.iter())),
         }
+    }
+
+    /// Whether the strands pile on each other: their beads' area more than [`CROWDED`] times
+    /// that of the [`CROWD_CELL`] cells they pass through. Only a damaged file makes such a
+    /// layer (several layers' strands in one, found by fuzzing), and geo's stroke buffer meets
+    /// every crossing of its strands one by one: minutes for a 300 kB file.
+    fn crowded(&self) -> bool {
+        let mut cells = std::collections::HashSet::new();
+        let (mut beads, mut visits) = (0.0, 0usize);
+        for (key, lines) in &self.0 {
+            let w = *key as f64 / 1000.0;
+            for l in lines {
+                for s in l.0.windows(2) {
+                    let (a, b) = (s[0], s[1]);
+                    let len = (b.x - a.x).hypot(b.y - a.y);
+                    if !len.is_finite() {
+                        return true;
+                    }
+                    beads += len * w;
+                    let n = (len / (CROWD_CELL / 2.0)).ceil() as usize;
+                    visits += n + 1;
+                    if visits > MAX_CROWD_VISITS {
+                        return true;
+                    }
+                    for k in 0..=n {
+                        let t = if n == 0 { 0.0 } else { k as f64 / n as f64 };
+                        let (x, y) = (a.x + t * (b.x - a.x), a.y + t * (b.y - a.y));
+                        cells.insert((
+                            (x / CROWD_CELL).floor() as i64,
+                            (y / CROWD_CELL).floor() as i64,
+                        ));
+                    }
+                }
+            }
+        }
+        beads > CROWDED * cells.len() as f64 * CROWD_CELL * CROWD_CELL
+    }
+
+    /// [`Strands::buffer_whole`] for crowded strands: Clipper's offset of open paths, whose
+    /// sweep takes the crossings in its stride.
+    fn buffer_crowded(&self) -> MultiPolygon<f64> {
+        use geo_clipper::{ClipperOpen, EndType, JoinType};
+        let parts: Vec<MultiPolygon<f64>> = self
+            .0
+            .iter()
+            .map(|(key, lines)| {
+                MultiLineString::new(lines.clone()).offset(
+                    *key as f64 / 2000.0,
+                    JoinType::Round(super::ARC_TOLERANCE * super::CLIPPER_SCALE),
+                    EndType::OpenRound(super::ARC_TOLERANCE * super::CLIPPER_SCALE),
+                    super::CLIPPER_SCALE,
+                )
+            })
+            .collect();
+        super::union_all(&parts.iter().collect::<Vec<_>>())
     }
 
     /// Groups of strands whose footprints cannot meet: no strand's box, grown by more than

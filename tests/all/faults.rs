@@ -369,8 +369,8 @@ fn a_finely_divided_ring_is_read_as_its_chords() {
 /// A damaged file whose last layer holds many layers' solid infill piled on each other
 /// (found by fuzzing: layer markers lost, Z moving within the layer): every strand crosses
 /// hundreds of others, and the polygon buffer of the layer's footprint (for its density)
-/// took 10 s for 12 piled layers and minutes for a fuzzed slice. The check ends at once and
-/// reports no density for it.
+/// took 10 s for 12 piled layers and minutes for a fuzzed slice (in `check`'s density and in
+/// `process`'s printed area alike). Both end at once; the check reports no density for it.
 #[test]
 fn a_layer_of_piled_up_strands_is_checked_at_once() {
     use std::fmt::Write as _;
@@ -404,24 +404,36 @@ fn a_layer_of_piled_up_strands_is_checked_at_once() {
     let dir = tempfile::tempdir().unwrap();
     let f = dir.path().join("in.gcode");
     std::fs::write(&f, &g).unwrap();
-    let mut child = poa()
-        .arg("check")
-        .arg("--json")
-        .arg(&f)
-        .stdout(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    // Far more than it needs (0.05 s); minutes before.
-    let start = std::time::Instant::now();
-    while child.try_wait().unwrap().is_none() {
-        if start.elapsed() > std::time::Duration::from_secs(60) {
-            let _ = child.kill();
-            panic!("poa check still running after 60 s");
+    // Far more than either needs (0.05 s); 19 s and more before.
+    let bounded = |args: &[&std::ffi::OsStr]| {
+        let mut child = poa()
+            .args(args)
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        let start = std::time::Instant::now();
+        while child.try_wait().unwrap().is_none() {
+            if start.elapsed() > std::time::Duration::from_secs(60) {
+                let _ = child.kill();
+                panic!("poa {args:?} still running after 60 s");
+            }
+            std::thread::sleep(std::time::Duration::from_millis(20));
         }
-        std::thread::sleep(std::time::Duration::from_millis(20));
-    }
-    let o = child.wait_with_output().unwrap();
-    assert!(o.status.success());
+        let o = child.wait_with_output().unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        o
+    };
+    // The rewrite reads the layer's printed area from the same strands: Clipper buffers them.
+    let out = dir.path().join("out.gcode");
+    bounded(&[
+        "process".as_ref(),
+        f.as_os_str(),
+        "-o".as_ref(),
+        out.as_os_str(),
+    ]);
+    assert!(out.is_file());
+    let o = bounded(&["check".as_ref(), "--json".as_ref(), f.as_os_str()]);
     let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     let layers = j["layers"].as_array().unwrap();
     assert_eq!(layers.len(), 2);
