@@ -19,7 +19,7 @@
 use geo::Area;
 use serde::Serialize;
 
-use crate::geometry::{footprint, nearest_on_segment};
+use crate::geometry::{footprint_if_spread, nearest_on_segment};
 use crate::layers::{flow_width, Layer, Path, Role};
 
 /// Settings of the check.
@@ -873,10 +873,11 @@ fn check_within(
     // the whole layer's footprint, twice a rewritten layer, was a quarter of a plate of
     // bowls' rewrite).
     let points: usize = layer.paths.iter().map(|p| p.points.len()).sum();
-    let area = if points > MAX_DENSITY_POINTS || !density || crowded(layer, filament_area) {
+    let area = if points > MAX_DENSITY_POINTS || !density {
         0.0
     } else {
-        footprint(
+        // Not where the strands pile on each other (a damaged file): no density then.
+        footprint_if_spread(
             layer
                 .paths
                 .iter()
@@ -893,7 +894,7 @@ fn check_within(
                 .collect::<Vec<_>>()
                 .iter(),
         )
-        .unsigned_area()
+        .map_or(0.0, |a| a.unsigned_area())
     };
     if area > 0.0 && layer.height > 0.0 {
         result.density = volume / area / layer.height;
@@ -903,51 +904,6 @@ fn check_within(
 
 /// Most vertices of a layer whose density is measured.
 const MAX_DENSITY_POINTS: usize = 500_000;
-
-/// Side (mm) of the cells [`crowded`] counts.
-const CROWD_CELL: f64 = 1.0;
-
-/// How many times the area of the cells they pass through a layer's beads may cover before
-/// the layer is too crowded to measure its density (a solid layer covers its cells about
-/// once).
-const CROWDED: f64 = 4.0;
-
-/// Most cell visits [`crowded`] makes before it calls a layer crowded.
-const MAX_CROWD_VISITS: usize = 5_000_000;
-
-/// Whether a layer's beads pile on each other: their area more than [`CROWDED`] times that of
-/// the cells they pass through. Such a layer only comes from a damaged file (a block of
-/// moves repeated, relative moves read as absolute), and the polygon buffer of its footprint
-/// meets every crossing of its strands: 4800 points of a fuzzed file took minutes.
-fn crowded(layer: &Layer, filament_area: f64) -> bool {
-    let mut cells = std::collections::HashSet::new();
-    let (mut beads, mut visits) = (0.0, 0usize);
-    for p in &layer.paths {
-        let w = p.e_width(filament_area).clamp(0.0, 10.0);
-        for s in p.points.windows(2) {
-            let (a, b) = (s[0], s[1]);
-            let len = (b[0] - a[0]).hypot(b[1] - a[1]);
-            if !len.is_finite() {
-                return true;
-            }
-            beads += len * w;
-            let n = (len / (CROWD_CELL / 2.0)).ceil() as usize;
-            visits += n + 1;
-            if visits > MAX_CROWD_VISITS {
-                return true;
-            }
-            for k in 0..=n {
-                let t = if n == 0 { 0.0 } else { k as f64 / n as f64 };
-                let (x, y) = (a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1]));
-                cells.insert((
-                    (x / CROWD_CELL).floor() as i64,
-                    (y / CROWD_CELL).floor() as i64,
-                ));
-            }
-        }
-    }
-    beads > CROWDED * cells.len() as f64 * CROWD_CELL * CROWD_CELL
-}
 
 /// Most samples held for one path (~110 MB): 200 m of path at the 0.1 mm step, a whole
 /// 300 x 300 mm solid layer printed as one path.

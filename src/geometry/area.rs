@@ -273,6 +273,15 @@ pub fn footprint<'a>(paths: impl IntoIterator<Item = &'a Path>) -> MultiPolygon<
     Strands::of(paths).buffer()
 }
 
+/// [`footprint`], or `None` where the strands pile on each other ([`Strands::crowded`]: a
+/// damaged file; the deposition check reports no density for such a layer).
+pub fn footprint_if_spread<'a>(
+    paths: impl IntoIterator<Item = &'a Path>,
+) -> Option<MultiPolygon<f64>> {
+    let strands = Strands::of(paths);
+    (!strands.crowded()).then(|| strands.buffer())
+}
+
 /// Strands that hold up the layer above: the part and its support, not skirt or priming.
 fn supports(role: Role) -> bool {
     role.is_part() || matches!(role, Role::Support | Role::SupportInterface)
