@@ -1802,6 +1802,8 @@ impl<'a> PoaPass<'a> {
             let hangs = hanging.get(k).copied().unwrap_or(false);
             let why = if d.layer.helical {
                 "spiral layer (Z rises while it extrudes): its strands have no one height to write loops at"
+            } else if r.max_distance > MAX_REACH {
+                "reaches farther from what the layer below printed than any printer's part (a damaged file?)"
             } else if r.area < SMALL_REGION && !above_rewrite && !hangs {
                 "small (under 1 mm2), and the slicer's strands over it are held"
             } else if !self.opts.settings.rewrites(r.kind) && !above_rewrite && !hangs {
@@ -2456,6 +2458,11 @@ impl PoaPass<'_> {
 
 /// A box, (min, max) corners.
 type Window = ([f64; 2], [f64; 2]);
+
+/// Farthest (mm) a region may reach from what the layer below printed and be planned: loops
+/// a step apart out to there would be thousands, and no printer's bed holds such a cantilever
+/// (a fuzzed file's perimeter flung 10 m out took minutes of offsets to plan).
+const MAX_REACH: f64 = 500.0;
 
 /// Total zone area (mm2) of a layer's rewrites under which the rewritten layer is always
 /// judged against the layer as sliced (re-read and checked near the zones).
