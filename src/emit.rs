@@ -78,6 +78,10 @@ pub struct RegionRewrite {
     /// Bead height of the rewrite (mm): the height the slicer laid the region's object at on
     /// this layer (objects of different layer heights share a layer).
     pub height: f64,
+    /// Where loops are not joined by extruded connectors: round an anchor strip over sparse
+    /// infill ([`anchor_strips`]) nothing older than the loops just laid holds a step between
+    /// them (empty elsewhere).
+    pub no_connect: MultiPolygon<f64>,
 }
 
 /// What a region's rewrite changed.
@@ -1265,7 +1269,14 @@ fn emit_block(
     for (i, s) in plan.strands.iter().enumerate() {
         // The width the E makes, by the flow model at this layer's height.
         let per_mm = motion.e_per_mm(s.width, height, settings.flow_factor);
-        if i > 0 && connects(&plan.strands[i - 1], s) {
+        if i > 0
+            && connects(&plan.strands[i - 1], s)
+            && !over_area(
+                &rewrite.no_connect,
+                [w.position()[0], w.position()[1]],
+                s.points[0],
+            )
+        {
             // The next loop starts beside the end of this one: an extruded step over the
             // loop just laid, with no travel (short strokes across a narrow arm would
             // otherwise spend a fifth of their length on hops).
@@ -1394,6 +1405,15 @@ fn connects(prev: &Strand, next: &Strand) -> bool {
         return false;
     }
     over_laid([&prev.points[..], &next.points[..]], a, b, w)
+}
+
+/// Whether the step from `a` to `b` (its ends and middle) touches `area`.
+fn over_area(area: &MultiPolygon<f64>, a: [f64; 2], b: [f64; 2]) -> bool {
+    use geo::Intersects;
+    !area.0.is_empty()
+        && [a, [(a[0] + b[0]) / 2.0, (a[1] + b[1]) / 2.0], b]
+            .iter()
+            .any(|q| area.intersects(&geo::Point::new(q[0], q[1])))
 }
 
 /// Longest extruded connector between loops, in loop widths: the seam stagger of closed
@@ -1951,13 +1971,75 @@ impl<'a> PoaPass<'a> {
         self.below_layers.push_back(kept);
     }
 
+    /// [`PoaPass::plan`], with the slicer's bridge anchors over sparse infill planned with
+    /// their regions ([`anchor_strips`]) where the layer so rewritten prints less in air
+    /// round its zones than rewritten without them (loops in a strip can leave the part's
+    /// own infill ends beside it in air: a star's cap on its post, 0.1 -> 4.3 mm).
+    fn plan_best(
+        &mut self,
+        d: &crate::geometry::Detected,
+        area: &MultiPolygon<f64>,
+        left: &Chosen<'_>,
+        chosen: &Chosen<'_>,
+        above: Option<&Layer>,
+    ) -> Vec<RegionRewrite> {
+        let skipped_at = self.report.skipped.len();
+        let with = self.plan(d, area, left, chosen, true);
+        if with.iter().all(|r| r.no_connect.0.is_empty()) {
+            return with;
+        }
+        let skipped_with = self.report.skipped.split_off(skipped_at);
+        let without = self.plan(d, area, left, chosen, false);
+        let layer = &d.layer;
+        let below = resting_on(&self.below_layers, layer);
+        let below = &below[..];
+        let window = {
+            use geo::BoundingRect;
+            window_round(
+                with.iter()
+                    .chain(&without)
+                    .filter_map(|r| r.plan.zone.bounding_rect()),
+                JUDGE_REACH,
+            )
+        };
+        let above = above.filter(|a| a.index == layer.index + 1 && a.on_previous());
+        let in_air = |rewrites: &[RegionRewrite]| -> f64 {
+            let (bytes, _) = rewrite_layer(
+                layer,
+                below,
+                above,
+                rewrites,
+                &self.motion,
+                &self.opts.settings,
+                BlockPlace::AtEntry,
+            );
+            match (reread(layer, &bytes, &self.config), window) {
+                (Some(back), Some(w)) => {
+                    crate::check::in_air_within(below, &back, self.motion.filament_area, w)
+                }
+                _ => f64::INFINITY,
+            }
+        };
+        let (a, b) = rayon::join(|| in_air(&with), || in_air(&without));
+        if a + STRIP_GAIN <= b {
+            self.report.skipped.truncate(skipped_at);
+            self.report.skipped.extend(skipped_with);
+            with
+        } else {
+            without
+        }
+    }
+
     /// Plans the chosen regions on all cores; regions where no loop fits go to the report.
+    /// `with_strips`: the slicer's bridge anchors over sparse infill beside a region are
+    /// planned with it ([`anchor_strips`]).
     fn plan(
         &mut self,
         d: &crate::geometry::Detected,
         area: &MultiPolygon<f64>,
         left: &Chosen<'_>,
         chosen: &Chosen<'_>,
+        with_strips: bool,
     ) -> Vec<RegionRewrite> {
         let layer = &d.layer;
         let start = layer
@@ -2158,8 +2240,74 @@ impl<'a> PoaPass<'a> {
                 s.reason = format!("floating: planned with region {id}, beside it");
             }
         }
-        let jobs: Vec<(&crate::geometry::Region, &crate::poa::Others)> =
-            chosen.iter().map(|(_, r)| *r).zip(others.iter()).collect();
+        // The slicer's bridge anchored over the sparse infill beside a region: its strands
+        // there are planned with the region (see [`anchor_strips`]).
+        let resting = resting_on(&self.below_layers, layer);
+        let strips = resting
+            .last()
+            .filter(|b| with_strips && b.index + 1 == layer.index)
+            .map(|b| {
+                anchor_strips(
+                    layer,
+                    (b, &resting),
+                    below,
+                    chosen,
+                    widths.loop_width,
+                    self.motion.filament_area,
+                )
+            })
+            .unwrap_or_else(|| vec![None; chosen.len()]);
+        let (extended, below_strips, area_strips);
+        type Jobs<'j> = Vec<(&'j crate::geometry::Region, &'j crate::poa::Others)>;
+        let (jobs, below, area): (Jobs<'_>, _, _) = if strips.iter().all(|s| s.is_none()) {
+            (
+                chosen.iter().map(|(_, r)| *r).zip(others.iter()).collect(),
+                below,
+                area,
+            )
+        } else {
+            let cavities: Vec<&MultiPolygon<f64>> =
+                strips.iter().flatten().map(|(_, c, _)| c).collect();
+            let cavities = crate::geometry::union_all(&cavities);
+            below_strips = crate::geometry::difference(below, &cavities);
+            extended = chosen
+                .iter()
+                .zip(&strips)
+                .map(|((_, r), s)| match s {
+                    // The strip's loops grow from the walls round it: the region reaches as
+                    // far as its farthest point from them (copies compare their growth's
+                    // end with this bound).
+                    Some((hint, _, strip)) => crate::geometry::Region {
+                        polygon: hint.clone(),
+                        max_distance: strip.0.iter().fold(r.max_distance, |m, p| {
+                            m.max(crate::geometry::regions::max_distance(p, &below_strips))
+                        }),
+                        ..(*r).clone()
+                    },
+                    None => (*r).clone(),
+                })
+                .collect::<Vec<_>>();
+            let strip_sets: Vec<&MultiPolygon<f64>> =
+                strips.iter().flatten().map(|(_, _, s)| s).collect();
+            // Round the strip the sparse infill is no ground to grow from, and no part of
+            // the zone either: its edge there is an outline, which the loops stop short
+            // of and a contour and a perimeter follow, as at the part's own edge.
+            // (Its outline a little past the slicer's strands: the perimeter along it,
+            // pulled in by the inset, then ends where their edge did, and the layer
+            // above's infill turns there keep what they rested on.)
+            area_strips = crate::geometry::difference(
+                area,
+                &crate::geometry::difference(
+                    &cavities,
+                    &crate::geometry::offset(&crate::geometry::union_all(&strip_sets), STRIP_EDGE),
+                ),
+            );
+            (
+                extended.iter().zip(others.iter()).collect(),
+                &below_strips,
+                &area_strips,
+            )
+        };
         let plans: Vec<(usize, RegionKind, Plan, f64)> =
             crate::poa::plan_all(&jobs, below, area, widths, settings, start)
                 .into_iter()
@@ -2167,7 +2315,9 @@ impl<'a> PoaPass<'a> {
                 .map(|(plan, (id, r))| (*id, r.kind, plan, object_height(layer, r.object)))
                 .collect();
         let mut rewrites = Vec::new();
-        for (id, kind, plan, height) in plans {
+        // (Every plan is accounted for, strip or not.)
+        let strips = strips.into_iter().chain(std::iter::repeat(None));
+        for ((id, kind, plan, height), strip) in plans.into_iter().zip(strips) {
             if plan.strands.is_empty() || leaves_a_hole(&plan) {
                 self.report.skipped.push(SkippedRegion {
                     region: id,
@@ -2181,6 +2331,9 @@ impl<'a> PoaPass<'a> {
                     kind,
                     plan,
                     height,
+                    no_connect: strip
+                        .map(|(_, cavity, _)| cavity)
+                        .unwrap_or_else(|| MultiPolygon(Vec::new())),
                 });
             }
         }
@@ -2260,7 +2413,7 @@ impl PoaPass<'_> {
         let rewrites = if chosen.is_empty() {
             Vec::new()
         } else {
-            self.plan(d, area(), &left, &chosen)
+            self.plan_best(d, area(), &left, &chosen, above)
         };
         let layer = &d.layer;
         let below = resting_on(&self.below_layers, layer);
@@ -2463,6 +2616,151 @@ type Window = ([f64; 2], [f64; 2]);
 /// a step apart out to there would be thousands, and no printer's bed holds such a cantilever
 /// (a fuzzed file's perimeter flung 10 m out took minutes of offsets to plan).
 const MAX_REACH: f64 = 500.0;
+
+/// Less in air (mm) round its zones by which a layer rewritten with anchor strips must beat
+/// the layer rewritten without them.
+const STRIP_GAIN: f64 = 0.5;
+
+/// Smallest strip (mm2) of a bridge's anchors over sparse infill planned with its region.
+const STRIP_MIN: f64 = 2.0;
+
+/// Radius (mm) of the closing that smooths an anchor strip's edge.
+const STRIP_SMOOTH: f64 = 1.0;
+
+/// How far (mm) past the slicer's strands an anchor strip's outline lies.
+const STRIP_EDGE: f64 = 0.15;
+
+/// Length (mm) of the slicer's strands in an anchor strip that the deposition check must
+/// find in air before the strip is planned with its region.
+const STRIP_AIR: f64 = 2.0;
+
+/// How far (in loop widths) round an anchor strip the sparse infill below stops counting as
+/// what loops grow from.
+const STRIP_CAVITY: f64 = 2.0;
+
+/// An anchor strip planned with its region: the region's outline extended by the bridge's
+/// strands (the planner's hint), the sparse infill round the strip (no ground to grow
+/// from), and the strip.
+type Strip = (geo::Polygon<f64>, MultiPolygon<f64>, MultiPolygon<f64>);
+
+/// For each chosen region, where the slicer anchored a bridge across its edge over the
+/// sparse infill of the layer `below` (PrusaSlicer lays a bridge's strands a few millimetres
+/// into the part beside it, and there they run over the gaps of the infill below: the
+/// deposition check finds them in air, 22 mm on the first floating layer of a wing, 48 mm on
+/// a shelf's by a 0.6 mm nozzle). `Some((hint, cavity, strip))` where there is such a strip: the
+/// region's outline with the bridge's strands that cross it (the zone is what the layer
+/// prints in there beyond the area below), and the sparse infill round the strip, taken out of
+/// the area below so that loops grow into the strip from the walls that hold it, not from
+/// the infill's gaps. The strip's slicer strands are then replaced by loops like the
+/// region's own.
+fn anchor_strips(
+    layer: &Layer,
+    (below, resting): (&Layer, &[&Layer]),
+    below_area: &MultiPolygon<f64>,
+    chosen: &Chosen<'_>,
+    w: f64,
+    filament_area: f64,
+) -> Vec<Option<Strip>> {
+    use geo::{Area, BoundingRect, Contains, Intersects};
+    let none = || vec![None; chosen.len()];
+    if !below.paths.iter().any(|p| p.role == Role::Infill) {
+        return none();
+    }
+    chosen
+        .iter()
+        .map(|(_, r)| {
+            if r.kind == RegionKind::Floating {
+                return None;
+            }
+            let rb = r.polygon.bounding_rect()?;
+            // The region's bridge strands that run out of it.
+            let crossing: Vec<&crate::layers::Path> = layer
+                .paths
+                .iter()
+                .filter(|p| p.role == Role::BridgeInfill)
+                .filter(|p| {
+                    crate::geometry::points_box(&p.points).is_some_and(|b| b.intersects(&rb))
+                })
+                .filter(|p| {
+                    let inside = |q: &[f64; 2]| r.polygon.contains(&geo::Point::new(q[0], q[1]));
+                    p.points.iter().any(inside) && !p.points.iter().all(inside)
+                })
+                .collect();
+            if crossing.is_empty() {
+                return None;
+            }
+            let bridges = crate::geometry::footprint(crossing.iter().copied());
+            let bb = bridges.bounding_rect()?;
+            let near = |pts: &[[f64; 2]]| {
+                crate::geometry::points_box(pts).is_some_and(|b| {
+                    b.max().x >= bb.min().x - 2.0
+                        && b.min().x <= bb.max().x + 2.0
+                        && b.max().y >= bb.min().y - 2.0
+                        && b.min().y <= bb.max().y + 2.0
+                })
+            };
+            // What holds strands below: everything but its sparse infill.
+            let solid = crate::geometry::footprint(
+                below
+                    .paths
+                    .iter()
+                    .filter(|p| p.role != Role::Infill && p.role.is_part() && near(&p.points)),
+            );
+            let window = crate::geometry::offset(&MultiPolygon::new(vec![bb.to_polygon()]), 2.0);
+            let sparse = crate::geometry::difference(
+                &crate::geometry::intersection(below_area, &window),
+                &crate::geometry::offset(&solid, 0.01),
+            );
+            // Its edge smoothed over the steps where the slicer's strands end at different
+            // places (a perimeter along a step turned past the loops' reach).
+            let strip = crate::geometry::intersection(
+                &crate::geometry::opening(
+                    &crate::geometry::closing(
+                        &crate::geometry::intersection(&bridges, &sparse),
+                        STRIP_SMOOTH,
+                    ),
+                    w,
+                ),
+                &sparse,
+            );
+            if strip.unsigned_area() < STRIP_MIN {
+                return None;
+            }
+            // Only where the slicer's strands there hang: a strip the infill below holds
+            // (its lines across the strands) is left as sliced (a star's cap anchored in its
+            // post: loops there left the post's own infill ends in air).
+            let sb = strip.bounding_rect()?;
+            let window = (
+                [sb.min().x - 1.0, sb.min().y - 1.0],
+                [sb.max().x + 1.0, sb.max().y + 1.0],
+            );
+            let sliced = crate::check::check_layer_within(resting, layer, filament_area, window);
+            let index = RingIndex::new(&strip);
+            let hanging: f64 = sliced
+                .samples
+                .iter()
+                .filter(|s| s.support == crate::check::Support::InAir)
+                .filter(|s| index.contains(s.point))
+                .map(|s| s.length)
+                .sum();
+            if hanging < STRIP_AIR {
+                return None;
+            }
+            // The bridge's strands join the strip to the region over the walls between them.
+            let hint =
+                crate::geometry::union(&MultiPolygon::new(vec![r.polygon.clone()]), &bridges);
+            let hint = match hint.0.len() {
+                1 => hint.0.into_iter().next()?,
+                _ => return None,
+            };
+            let cavity = crate::geometry::intersection(
+                &sparse,
+                &crate::geometry::offset(&strip, STRIP_CAVITY * w),
+            );
+            Some((hint, cavity, strip))
+        })
+        .collect()
+}
 
 /// Total zone area (mm2) of a layer's rewrites under which the rewritten layer is always
 /// judged against the layer as sliced (re-read and checked near the zones).
@@ -3040,6 +3338,26 @@ mod tests {
         // A hop straight on past the end, to a piece beyond a gap, leaves both beads.
         let beyond = loop_strand(2, vec![[2.1, 0.0], [2.1, -1.3]]);
         assert!(!connects(&a, &beyond));
+    }
+
+    #[test]
+    fn no_connector_is_laid_over_an_anchor_strip_s_cavity() {
+        // A cavity of sparse infill from x 1 to 2: a step there, or ending or starting
+        // there, is kept off it; steps beside it are not.
+        let cavity = MultiPolygon::new(vec![geo::Rect::new(
+            geo::coord! { x: 1.0, y: -1.0 },
+            geo::coord! { x: 2.0, y: 1.0 },
+        )
+        .to_polygon()]);
+        assert!(over_area(&cavity, [1.5, 0.0], [1.5, 0.27]));
+        assert!(over_area(&cavity, [0.9, 0.0], [1.2, 0.0]));
+        assert!(over_area(&cavity, [0.5, 0.0], [1.5, 0.0]));
+        assert!(!over_area(&cavity, [0.0, 0.0], [0.5, 0.27]));
+        assert!(!over_area(
+            &MultiPolygon::new(vec![]),
+            [1.5, 0.0],
+            [1.5, 0.27]
+        ));
     }
 
     #[test]

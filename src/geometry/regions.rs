@@ -555,7 +555,7 @@ const CANTILEVER_AREA: f64 = 1.0;
 
 /// Largest distance from the region to `below`, sampled at the region's vertices and on a
 /// grid inside it.
-fn max_distance(polygon: &Polygon<f64>, below: &MultiPolygon<f64>) -> f64 {
+pub fn max_distance(polygon: &Polygon<f64>, below: &MultiPolygon<f64>) -> f64 {
     let Some(rb) = polygon.bounding_rect() else {
         return 0.0;
     };

@@ -977,6 +977,51 @@ fn arms_at_60_degrees_bridge_less() {
     }
 }
 
+/// PrusaSlicer anchors a bridge a few millimetres into the part beside it, over the part's
+/// sparse infill; there its strands ran along the gaps of the infill below (in air: a slot
+/// shelf over lightning infill 22.5 mm on its first floating layer, a shelf by a 0.6 mm
+/// nozzle 47.8 mm on its second, a wing 22.4 mm). Planned with the region, the strip gets
+/// loops grown from the walls that hold it.
+#[test]
+fn bridge_anchors_over_sparse_infill_are_planned_with_the_region() {
+    let cases: [(&str, &[&str], f64); 3] = [
+        (
+            "slot_shelf",
+            &["--fill-pattern", "lightning", "--perimeters", "1"],
+            1.0,
+        ),
+        (
+            "shelves_hole",
+            &["--nozzle-diameter", "0.6", "--layer-height", "0.3"],
+            1.0,
+        ),
+        ("wing", &[], 3.0),
+    ];
+    for (name, args, most) in cases {
+        let Some(data) = slice(name, args) else {
+            return;
+        };
+        let what = format!("{name} {args:?}");
+        let (new, _) = rewrite(&data, BridgeMode::Auto);
+        let (before, after) = before_after(&what, &data, &new);
+        no_layer_worse(&what, &before, &after);
+        for (b, a) in before.layers.iter().zip(&after.layers) {
+            // The floating layers poa rewrote (the lightning's own top layers, further up,
+            // bridge between its branches, as sliced).
+            let rewritten = (a.length_mm - b.length_mm).abs() > 1e-6;
+            if rewritten && b.in_air_mm > 20.0 {
+                assert!(
+                    a.in_air_mm <= most,
+                    "{what}: layer {} keeps {:.1} mm in air ({:.1} before)",
+                    b.layer,
+                    a.in_air_mm,
+                    b.in_air_mm
+                );
+            }
+        }
+    }
+}
+
 /// A gradual overhang's block goes in where the slicer's wall enters its zone and ends where
 /// the wall leaves it: the wall goes on from there, not from a hop back across the zone.
 /// (Written before the wall, the nozzle went out to the block and back, and the wall then
