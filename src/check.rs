@@ -525,9 +525,19 @@ fn segments(
     filament_area: f64,
     support_only: bool,
 ) -> impl Iterator<Item = Seg> + '_ {
+    segments_of(layer, filament_area, support_only, |_| true)
+}
+
+/// [`segments`] of the paths `keep` keeps.
+fn segments_of<'a>(
+    layer: &'a Layer,
+    filament_area: f64,
+    support_only: bool,
+    keep: impl Fn(&Path) -> bool + 'a,
+) -> impl Iterator<Item = Seg> + 'a {
     let paths = layer.paths.iter();
     paths
-        .filter(move |p| !support_only || p.role.is_support())
+        .filter(move |p| (!support_only || p.role.is_support()) && keep(p))
         .flat_map(move |p| {
             (0..p.points.len().saturating_sub(1)).map(move |i| Seg {
                 a: p.points[i],
@@ -577,6 +587,7 @@ pub fn check_layer(
         Wants {
             samples: keep_samples,
             density: true,
+            only_near: None,
         },
         None,
     )
@@ -602,6 +613,7 @@ pub fn check_layer_over(
         Wants {
             samples: false,
             density: true,
+            only_near: None,
         },
         None,
     )
@@ -675,6 +687,70 @@ pub fn in_air_within(
     for_rewrite(below, layer, filament_area, Some(window), false).in_air_mm
 }
 
+/// Samples (with their lengths) of `layer`'s strands inside the boxes `windows` (min, max
+/// corners), judged as [`check_layer`] judges them but for the runs that leave the boxes:
+/// there every sample outside counts as held, so that a run out of a box ends there,
+/// anchored (a bridge's strands zigzag across a whole cap, and a check of their anchors
+/// beside it need not sample the rest). Cheaper than [`check_layer_within`]; in-air lengths
+/// inside the boxes can only be lower than it finds (a run shortened at a box's edge).
+pub fn samples_inside(
+    below: &[&Layer],
+    layer: &Layer,
+    filament_area: f64,
+    windows: &[([f64; 2], [f64; 2])],
+) -> Vec<Sample> {
+    let Some(window) = windows.iter().copied().reduce(|a, b| {
+        (
+            [a.0[0].min(b.0[0]), a.0[1].min(b.0[1])],
+            [a.1[0].max(b.1[0]), a.1[1].max(b.1[1])],
+        )
+    }) else {
+        return Vec::new();
+    };
+    let wants = Wants {
+        samples: true,
+        density: false,
+        only_near: Some(windows),
+    };
+    check_within(
+        below,
+        &[],
+        layer,
+        filament_area,
+        &CheckOptions::default(),
+        wants,
+        Some(window),
+    )
+    .samples
+    .into_iter()
+    .filter(|s| windows.iter().any(|w| inside_box(s.point, *w)))
+    .collect()
+}
+
+/// The stretch (from t, to t) of the segment `a`-`b` inside the box `w` (min, max corners),
+/// if it meets the box (Liang-Barsky).
+fn clip_to_box(a: [f64; 2], b: [f64; 2], w: ([f64; 2], [f64; 2])) -> Option<(f64, f64)> {
+    let (mut t0, mut t1) = (0.0f64, 1.0f64);
+    for k in 0..2 {
+        let d = b[k] - a[k];
+        if d.abs() < 1e-12 {
+            if a[k] < w.0[k] || a[k] > w.1[k] {
+                return None;
+            }
+            continue;
+        }
+        let (u, v) = ((w.0[k] - a[k]) / d, (w.1[k] - a[k]) / d);
+        t0 = t0.max(u.min(v));
+        t1 = t1.min(u.max(v));
+    }
+    (t0 <= t1).then_some((t0, t1))
+}
+
+/// Whether `p` lies in the box `w` (min, max corners).
+fn inside_box(p: [f64; 2], w: ([f64; 2], [f64; 2])) -> bool {
+    p[0] >= w.0[0] && p[0] <= w.1[0] && p[1] >= w.0[1] && p[1] <= w.1[1]
+}
+
 /// The checks the rewrite makes: default options, no density (it reads none).
 fn for_rewrite(
     below: &[&Layer],
@@ -686,6 +762,7 @@ fn for_rewrite(
     let wants = Wants {
         samples,
         density: false,
+        only_near: None,
     };
     check_within(
         below,
@@ -722,9 +799,11 @@ const WINDOW_MARGIN: f64 = 6.0;
 
 /// What a check keeps besides the lengths: the samples, the layer's density.
 #[derive(Debug, Clone, Copy)]
-struct Wants {
+struct Wants<'w> {
     samples: bool,
     density: bool,
+    /// Samples outside these boxes count as held, unsampled ([`samples_inside`]).
+    only_near: Option<&'w [([f64; 2], [f64; 2])]>,
 }
 
 fn check_within(
@@ -739,7 +818,23 @@ fn check_within(
     let Wants {
         samples: keep_samples,
         density,
+        only_near,
     } = wants;
+    // A strand of the layer this far out holds no sample of the window.
+    let far = |s: &Seg| {
+        only_near.is_some_and(|ws| {
+            let b = points_bounds(&[s.a, s.b]);
+            !ws.iter().any(|w| boxes_meet(b, *w, WINDOW_MARGIN))
+        })
+    };
+    let outside = |p: [f64; 2]| only_near.is_some_and(|ws| !ws.iter().any(|w| inside_box(p, *w)));
+    // Below, the strands near the boxes only (a plate's layer has thousands).
+    let below_near = |p: &Path| {
+        only_near.is_none_or(|ws| {
+            let b = points_bounds(&p.points);
+            ws.iter().any(|w| boxes_meet(b, *w, WINDOW_MARGIN))
+        })
+    };
     let mut result = LayerCheck {
         layer: layer.index + 1,
         z: layer.z,
@@ -771,7 +866,7 @@ fn check_within(
     for b in below {
         // A layer under the contact gap holds this one by its support material only.
         let support_only = layer.contact.contains(&b.index) && !layer.rests_on.contains(&b.index);
-        for s in segments(b, filament_area, support_only) {
+        for s in segments_of(b, filament_area, support_only, below_near) {
             if window.is_none() || boxes_meet(points_bounds(&[s.a, s.b]), (min, max), 0.0) {
                 grid.insert(s);
             }
@@ -818,36 +913,78 @@ fn check_within(
                 continue;
             }
             let reach = (0.5 - opts.overlap_min) * w;
-            let n = ((len / step).ceil() as usize).max(1);
-            for k in 0..n {
-                let t = (k as f64 + 0.5) / n as f64;
-                let p = [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])];
-                let s_here = along + t * len;
-                while let Some((end, _)) = own.front() {
-                    if s_here - end >= 2.0 * w {
-                        if let Some((_, seg)) = own.pop_front() {
-                            grid.insert(seg);
+            // Pieces of the segment (from t, to t, samples, held without looking): all of
+            // it; or, sampled only near boxes, its stretch within them, and one held sample
+            // for each stretch out of them.
+            let pieces: Vec<(f64, f64, usize, bool)> = match only_near {
+                None => vec![(0.0, 1.0, ((len / step).ceil() as usize).max(1), false)],
+                Some(ws) => match ws
+                    .iter()
+                    .filter_map(|w| clip_to_box(a, b, *w))
+                    .reduce(|x, y| (x.0.min(y.0), x.1.max(y.1)))
+                {
+                    None => vec![(0.0, 1.0, 1, true)],
+                    Some((t0, t1)) => {
+                        let mut v = Vec::with_capacity(3);
+                        if t0 > 0.0 {
+                            v.push((0.0, t0, 1, true));
                         }
-                    } else {
-                        break;
+                        v.push((
+                            t0,
+                            t1,
+                            (((t1 - t0) * len / step).ceil() as usize).max(1),
+                            false,
+                        ));
+                        if t1 < 1.0 {
+                            v.push((t1, 1.0, 1, true));
+                        }
+                        v
                     }
+                },
+            };
+            for (t0, t1, n, held) in pieces {
+                for k in 0..n {
+                    // A held stretch's sample sits at the box's edge, where the run it
+                    // anchors leaves the box.
+                    // (Half a sample step out of the box: it is not one of the box's.)
+                    let out = (0.5 * step / len).min(0.5 * (t1 - t0));
+                    let t = match (held, t0 == 0.0, t1 == 1.0) {
+                        (true, true, false) => t1 - out,
+                        (true, false, true) => t0 + out,
+                        _ => t0 + (t1 - t0) * (k as f64 + 0.5) / n as f64,
+                    };
+                    let p = [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])];
+                    let s_here = along + t * len;
+                    while let Some((end, _)) = own.front() {
+                        if s_here - end >= 2.0 * w {
+                            if let Some((_, seg)) = own.pop_front() {
+                                if !far(&seg) {
+                                    grid.insert(seg);
+                                }
+                            }
+                        } else {
+                            break;
+                        }
+                    }
+                    let ok = on_bed
+                        || held
+                        || outside(p)
+                        || grid.near(p, reach, &mut last)
+                        || own.iter().any(|(_, o)| turned_back(o, a, b, p, reach))
+                        || (infill
+                            && tall_at.is_some_and(|t| w > t)
+                            && deep.near(p, reach, &mut last_deep));
+                    samples.push((
+                        s_here,
+                        Sample {
+                            point: p,
+                            line: path.seg_line[i],
+                            length: len * (t1 - t0) / n as f64,
+                            support: Support::Supported,
+                        },
+                        ok,
+                    ));
                 }
-                let ok = on_bed
-                    || grid.near(p, reach, &mut last)
-                    || own.iter().any(|(_, o)| turned_back(o, a, b, p, reach))
-                    || (infill
-                        && tall_at.is_some_and(|t| w > t)
-                        && deep.near(p, reach, &mut last_deep));
-                samples.push((
-                    s_here,
-                    Sample {
-                        point: p,
-                        line: path.seg_line[i],
-                        length: len / n as f64,
-                        support: Support::Supported,
-                    },
-                    ok,
-                ));
             }
             along += len;
             own.push_back((
@@ -860,7 +997,9 @@ fn check_within(
             ));
         }
         for (_, seg) in own {
-            grid.insert(seg);
+            if !far(&seg) {
+                grid.insert(seg);
+            }
         }
         classify(&mut samples, opts, &mut result);
         if keep_samples {
@@ -1188,6 +1327,47 @@ mod tests {
         assert!(whole.density > 0.0 && windowed.density == 0.0);
         assert!((windowed.bridged_mm - whole.bridged_mm).abs() < 1e-6);
         assert!(!windowed.samples.is_empty());
+    }
+
+    #[test]
+    fn samples_inside_boxes_are_those_the_whole_check_finds_there() {
+        let fa = filament_area(1.75);
+        let below = disk(5.0);
+        let above = rings(4.9, 8.0, 0.45);
+        let whole = check_layer(&[&below], &above, fa, &CheckOptions::default(), true);
+        let boxes = [([6.0, -1.0], [9.0, 1.0]), ([-9.0, -1.0], [-6.0, 1.0])];
+        let inside = |p: [f64; 2]| boxes.iter().any(|w| inside_box(p, *w));
+        let near = samples_inside(&[&below], &above, fa, &boxes);
+        // Only samples inside the boxes, at the whole check's spacing; held where the whole
+        // check holds them, and no more in air (the rings' runs are cut at the boxes'
+        // edges, where they count as anchored: in air there may read as bridged).
+        assert!(near.iter().all(|s| inside(s.point)));
+        let sum = |ss: &[&Sample], f: &dyn Fn(&Sample) -> bool| -> f64 {
+            ss.iter().filter(|s| f(s)).map(|s| s.length).sum()
+        };
+        let there: Vec<&Sample> = whole.samples.iter().filter(|s| inside(s.point)).collect();
+        let near: Vec<&Sample> = near.iter().collect();
+        let held = |s: &Sample| s.support == Support::Supported;
+        let in_air = |s: &Sample| s.support == Support::InAir;
+        let all = |_: &Sample| true;
+        assert!(sum(&there, &in_air) > 1.0);
+        assert!(sum(&near, &in_air) <= sum(&there, &in_air) + 1e-6);
+        let bridged = |s: &Sample| s.support != Support::Supported;
+        assert!((sum(&near, &bridged) - sum(&there, &bridged)).abs() < 0.05 * sum(&there, &all));
+        assert!((sum(&near, &held) - sum(&there, &held)).abs() < 0.05 * sum(&there, &all));
+        assert!((sum(&near, &all) - sum(&there, &all)).abs() < 0.05 * sum(&there, &all));
+        // No box: nothing.
+        assert!(samples_inside(&[&below], &above, fa, &[]).is_empty());
+    }
+
+    #[test]
+    fn a_segment_is_cut_to_the_part_of_it_in_a_box() {
+        let w = ([0.0, 0.0], [1.0, 1.0]);
+        assert_eq!(clip_to_box([-1.0, 0.5], [3.0, 0.5], w), Some((0.25, 0.5)));
+        assert_eq!(clip_to_box([0.5, 0.5], [0.6, 0.6], w), Some((0.0, 1.0)));
+        assert_eq!(clip_to_box([2.0, 0.5], [3.0, 0.5], w), None);
+        assert_eq!(clip_to_box([-1.0, 2.0], [2.0, 2.0], w), None);
+        assert_eq!(clip_to_box([0.5, -1.0], [0.5, 1.0], w), Some((0.5, 1.0)));
     }
 
     #[test]

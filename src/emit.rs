@@ -2661,18 +2661,26 @@ fn anchor_strips(
     w: f64,
     filament_area: f64,
 ) -> Vec<Option<Strip>> {
-    use geo::{Area, BoundingRect, Contains, Intersects};
-    let none = || vec![None; chosen.len()];
+    use geo::{Area, BoundingRect, Intersects};
+    use rayon::prelude::*;
     if !below.paths.iter().any(|p| p.role == Role::Infill) {
-        return none();
+        return vec![None; chosen.len()];
     }
-    chosen
-        .iter()
+    // The regions' bridge strands crossing them and the sparse infill near them.
+    type Found<'r> = Option<(
+        &'r crate::geometry::Region,
+        Vec<&'r crate::layers::Path>,
+        MultiPolygon<f64>,
+    )>;
+    let found: Vec<Found<'_>> = chosen
+        .par_iter()
         .map(|(_, r)| {
+            let r: &crate::geometry::Region = r;
             if r.kind == RegionKind::Floating {
                 return None;
             }
             let rb = r.polygon.bounding_rect()?;
+            let region = RingIndex::new(&MultiPolygon::new(vec![r.polygon.clone()]));
             // The region's bridge strands that run out of it.
             let crossing: Vec<&crate::layers::Path> = layer
                 .paths
@@ -2682,23 +2690,24 @@ fn anchor_strips(
                     crate::geometry::points_box(&p.points).is_some_and(|b| b.intersects(&rb))
                 })
                 .filter(|p| {
-                    let inside = |q: &[f64; 2]| r.polygon.contains(&geo::Point::new(q[0], q[1]));
+                    let inside = |q: &[f64; 2]| region.contains(*q);
                     p.points.iter().any(inside) && !p.points.iter().all(inside)
                 })
                 .collect();
-            if crossing.is_empty() {
-                return None;
-            }
-            let bridges = crate::geometry::footprint(crossing.iter().copied());
-            let bb = bridges.bounding_rect()?;
-            let near = |pts: &[[f64; 2]]| {
-                crate::geometry::points_box(pts).is_some_and(|b| {
-                    b.max().x >= bb.min().x - 2.0
-                        && b.min().x <= bb.max().x + 2.0
-                        && b.max().y >= bb.min().y - 2.0
-                        && b.min().y <= bb.max().y + 2.0
-                })
+            let bb = crate::geometry::points_box(
+                &crossing
+                    .iter()
+                    .flat_map(|p| p.points.iter().copied())
+                    .collect::<Vec<_>>(),
+            )?;
+            let near_box = |b: &geo::Rect<f64>| {
+                b.max().x >= bb.min().x - 2.0
+                    && b.min().x <= bb.max().x + 2.0
+                    && b.max().y >= bb.min().y - 2.0
+                    && b.min().y <= bb.max().y + 2.0
             };
+            let near =
+                |pts: &[[f64; 2]]| crate::geometry::points_box(pts).is_some_and(|b| near_box(&b));
             // What holds strands below: everything but its sparse infill.
             let solid = crate::geometry::footprint(
                 below
@@ -2707,10 +2716,94 @@ fn anchor_strips(
                     .filter(|p| p.role != Role::Infill && p.role.is_part() && near(&p.points)),
             );
             let window = crate::geometry::offset(&MultiPolygon::new(vec![bb.to_polygon()]), 2.0);
+            // (The polygons of the plate's area below near the bridge only.)
+            let below_near = MultiPolygon::new(
+                below_area
+                    .0
+                    .iter()
+                    .filter(|q| q.bounding_rect().is_some_and(|b| near_box(&b)))
+                    .cloned()
+                    .collect(),
+            );
             let sparse = crate::geometry::difference(
-                &crate::geometry::intersection(below_area, &window),
+                &crate::geometry::intersection(&below_near, &window),
                 &crate::geometry::offset(&solid, 0.01),
             );
+            if sparse.unsigned_area() < STRIP_MIN {
+                return None;
+            }
+            Some((r, crossing, sparse))
+        })
+        .collect();
+    // Only where the slicer's strands there hang: a strip the infill below holds (its lines
+    // across the strands) is left as sliced. One check of the layer near every region's
+    // sparse infill (each on its own read the plate's layers again).
+    let windows: Vec<Window> = found
+        .iter()
+        .flatten()
+        .filter_map(|(_, _, sparse)| sparse.bounding_rect())
+        .map(|b| {
+            (
+                [b.min().x - 1.0, b.min().y - 1.0],
+                [b.max().x + 1.0, b.max().y + 1.0],
+            )
+        })
+        .collect();
+    if windows.is_empty() {
+        return vec![None; chosen.len()];
+    }
+    let in_air: Vec<crate::check::Sample> =
+        crate::check::samples_inside(resting, layer, filament_area, &windows)
+            .into_iter()
+            .filter(|s| s.support == crate::check::Support::InAir)
+            .collect();
+    let hanging = |area: &MultiPolygon<f64>, of: Option<&std::collections::HashSet<u64>>| -> f64 {
+        let index = RingIndex::new(area);
+        let Some(b) = area.bounding_rect() else {
+            return 0.0;
+        };
+        in_air
+            .iter()
+            .filter(|s| {
+                let [x, y] = s.point;
+                x >= b.min().x && x <= b.max().x && y >= b.min().y && y <= b.max().y
+            })
+            .filter(|s| of.is_none_or(|l| l.contains(&s.line)))
+            .filter(|s| index.contains(s.point))
+            .map(|s| s.length)
+            .sum()
+    };
+    found
+        .into_par_iter()
+        .map(|f| {
+            let (r, crossing, sparse) = f?;
+            // (The bridge's own strands first: what else hangs there is no strip's.)
+            let lines: std::collections::HashSet<u64> = crossing
+                .iter()
+                .flat_map(|p| p.seg_line.iter().copied())
+                .collect();
+            if hanging(&sparse, Some(&lines)) < STRIP_AIR {
+                return None;
+            }
+            // The strands' footprint near the sparse infill only (a bridge's strands zigzag
+            // across a whole cap, its anchors are over the post): their pieces within reach
+            // of its box, through the walls round it to the region.
+            let sb = sparse.bounding_rect()?;
+            let reach = (
+                [sb.min().x - STRIP_REACH, sb.min().y - STRIP_REACH],
+                [sb.max().x + STRIP_REACH, sb.max().y + STRIP_REACH],
+            );
+            let pieces: Vec<(Vec<[f64; 2]>, f64)> = crossing
+                .iter()
+                .flat_map(|p| {
+                    pieces_in(&p.points, reach)
+                        .into_iter()
+                        .map(move |q| (q, p.width))
+                })
+                .collect();
+            let bridges =
+                crate::geometry::area::Strands::of_lines(pieces.iter().map(|(q, w)| (&q[..], *w)))
+                    .buffer();
             // Its edge smoothed over the steps where the slicer's strands end at different
             // places (a perimeter along a step turned past the loops' reach).
             let strip = crate::geometry::intersection(
@@ -2723,27 +2816,7 @@ fn anchor_strips(
                 ),
                 &sparse,
             );
-            if strip.unsigned_area() < STRIP_MIN {
-                return None;
-            }
-            // Only where the slicer's strands there hang: a strip the infill below holds
-            // (its lines across the strands) is left as sliced (a star's cap anchored in its
-            // post: loops there left the post's own infill ends in air).
-            let sb = strip.bounding_rect()?;
-            let window = (
-                [sb.min().x - 1.0, sb.min().y - 1.0],
-                [sb.max().x + 1.0, sb.max().y + 1.0],
-            );
-            let sliced = crate::check::check_layer_within(resting, layer, filament_area, window);
-            let index = RingIndex::new(&strip);
-            let hanging: f64 = sliced
-                .samples
-                .iter()
-                .filter(|s| s.support == crate::check::Support::InAir)
-                .filter(|s| index.contains(s.point))
-                .map(|s| s.length)
-                .sum();
-            if hanging < STRIP_AIR {
+            if strip.unsigned_area() < STRIP_MIN || hanging(&strip, None) < STRIP_AIR {
                 return None;
             }
             // The bridge's strands join the strip to the region over the walls between them.
@@ -2760,6 +2833,36 @@ fn anchor_strips(
             Some((hint, cavity, strip))
         })
         .collect()
+}
+
+/// How far (mm) past the box of the sparse infill beside a region the bridge strands
+/// anchored over it are taken for its strip: across the walls round it, to the region.
+const STRIP_REACH: f64 = 3.0;
+
+/// The runs of the polyline `points` whose segments meet the box `b` (min, max corners).
+fn pieces_in(points: &[[f64; 2]], b: ([f64; 2], [f64; 2])) -> Vec<Vec<[f64; 2]>> {
+    let meets = |p: [f64; 2], q: [f64; 2]| {
+        p[0].max(q[0]) >= b.0[0]
+            && p[0].min(q[0]) <= b.1[0]
+            && p[1].max(q[1]) >= b.0[1]
+            && p[1].min(q[1]) <= b.1[1]
+    };
+    let mut out: Vec<Vec<[f64; 2]>> = Vec::new();
+    let mut run: Vec<[f64; 2]> = Vec::new();
+    for s in points.windows(2) {
+        if meets(s[0], s[1]) {
+            if run.is_empty() {
+                run.push(s[0]);
+            }
+            run.push(s[1]);
+        } else if !run.is_empty() {
+            out.push(std::mem::take(&mut run));
+        }
+    }
+    if !run.is_empty() {
+        out.push(run);
+    }
+    out
 }
 
 /// Total zone area (mm2) of a layer's rewrites under which the rewritten layer is always
