@@ -712,19 +712,11 @@ pub fn samples_inside(
         density: false,
         only_near: Some(windows),
     };
-    check_within(
-        below,
-        &[],
-        layer,
-        filament_area,
-        &CheckOptions::default(),
-        wants,
-        Some(window),
-    )
-    .samples
-    .into_iter()
-    .filter(|s| windows.iter().any(|w| inside_box(s.point, *w)))
-    .collect()
+    checked_as_rewrite(below, layer, filament_area, Some(window), wants)
+        .samples
+        .into_iter()
+        .filter(|s| windows.iter().any(|w| inside_box(s.point, *w)))
+        .collect()
 }
 
 /// The stretch (from t, to t) of the segment `a`-`b` inside the box `w` (min, max corners),
@@ -764,15 +756,19 @@ fn for_rewrite(
         density: false,
         only_near: None,
     };
-    check_within(
-        below,
-        &[],
-        layer,
-        filament_area,
-        &CheckOptions::default(),
-        wants,
-        window,
-    )
+    checked_as_rewrite(below, layer, filament_area, window, wants)
+}
+
+/// [`check_within`] with the default options and no layers deeper.
+fn checked_as_rewrite(
+    below: &[&Layer],
+    layer: &Layer,
+    filament_area: f64,
+    window: Option<([f64; 2], [f64; 2])>,
+    wants: Wants<'_>,
+) -> LayerCheck {
+    let opts = CheckOptions::default();
+    check_within(below, &[], layer, filament_area, &opts, wants, window)
 }
 
 /// Whether the box `a` meets the box `b` grown by `m`.
