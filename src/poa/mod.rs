@@ -451,6 +451,18 @@ pub(super) fn plan_in(
         if laid < MOVED_SHARE * along {
             return no_plan(zone);
         }
+        // The slicer's strands are taken out only where these run along them: a ring whose
+        // moved perimeter is clipped away along part of it (a strip there narrower than the
+        // perimeter's pull-in: a box chamfered on two sides, the sides' 0.3 mm) kept nothing
+        // there, and the slicer's wall on those sides was lost, layer after layer.
+        let reach = we / 2.0 + inset + w / 4.0;
+        let along_new = crate::geometry::area::Strands::of_lines(
+            strands
+                .iter()
+                .map(|s| (&s.points[..], s.width + 2.0 * reach)),
+        )
+        .buffer();
+        let zone = intersection(&zone, &along_new);
         orient(&mut strands, start);
         return Plan {
             zone,
