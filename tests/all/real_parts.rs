@@ -1059,8 +1059,8 @@ fn a_chamfered_box_keeps_the_walls_of_its_sides() {
                 "{what}: layer {l} lost {lost:.2} mm2 of {a0:.1} mm2 printed as sliced"
             );
         }
-        let (before, after) = before_after(&what, &data, &new);
-        no_layer_worse(&what, &before, &after);
+        let (before, after) = before_after(what, &data, &new);
+        no_layer_worse(what, &before, &after);
     }
 }
 
