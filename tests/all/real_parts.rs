@@ -113,6 +113,17 @@ fn judge_one(what: String, data: &[u8]) -> (String, CheckReport, CheckReport) {
                 "{what}: layer {l} prints {a1:.1} mm2 outside its regions, {a0:.1} before"
             );
         }
+        // Nothing the slicer printed is lost: every rewritten layer prints what it printed
+        // as sliced, but for the moved perimeters' pull-in (0.05 mm) and the footprints'
+        // noise.
+        for &l in &rewritten {
+            let lost = printonair::geometry::difference(&area0[l - 1], &offset(&area1[l - 1], 0.1));
+            let (a0, lost) = (area0[l - 1].unsigned_area(), lost.unsigned_area());
+            assert!(
+                lost <= 0.005 * a0,
+                "{what}: layer {l} lost {lost:.2} mm2 of {a0:.1} mm2 printed as sliced"
+            );
+        }
         // The layer above a rewrite is no worse.
         for &l in &rewritten {
             if rewritten.contains(&(l + 1)) || l >= before.layers.len() {
