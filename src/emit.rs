@@ -1993,15 +1993,19 @@ impl<'a> PoaPass<'a> {
         let layer = &d.layer;
         let below = resting_on(&self.below_layers, layer);
         let below = &below[..];
-        let window = {
-            use geo::BoundingRect;
-            window_round(
-                with.iter()
-                    .chain(&without)
-                    .filter_map(|r| r.plan.zone.bounding_rect()),
-                JUDGE_REACH,
-            )
-        };
+        // Judged round the strips only (the rest of the regions' loops are alike): their
+        // cavities' boxes grown by a few millimetres, which hold the part's infill ends
+        // beside a strip.
+        let windows: Vec<Window> = with
+            .iter()
+            .filter_map(|r| geo::BoundingRect::bounding_rect(&r.no_connect))
+            .map(|b| {
+                (
+                    [b.min().x - STRIP_JUDGED, b.min().y - STRIP_JUDGED],
+                    [b.max().x + STRIP_JUDGED, b.max().y + STRIP_JUDGED],
+                )
+            })
+            .collect();
         let above = above.filter(|a| a.index == layer.index + 1 && a.on_previous());
         let in_air = |rewrites: &[RegionRewrite]| -> f64 {
             let (bytes, _) = rewrite_layer(
@@ -2013,11 +2017,15 @@ impl<'a> PoaPass<'a> {
                 &self.opts.settings,
                 BlockPlace::AtEntry,
             );
-            match (reread(layer, &bytes, &self.config), window) {
-                (Some(back), Some(w)) => {
-                    crate::check::in_air_within(below, &back, self.motion.filament_area, w)
+            match reread(layer, &bytes, &self.config) {
+                Some(back) => {
+                    crate::check::samples_inside(below, &back, self.motion.filament_area, &windows)
+                        .iter()
+                        .filter(|s| s.support == crate::check::Support::InAir)
+                        .map(|s| s.length)
+                        .sum()
                 }
-                _ => f64::INFINITY,
+                None => f64::INFINITY,
             }
         };
         let (a, b) = rayon::join(|| in_air(&with), || in_air(&without));
@@ -2243,15 +2251,25 @@ impl<'a> PoaPass<'a> {
         // The slicer's bridge anchored over the sparse infill beside a region: its strands
         // there are planned with the region (see [`anchor_strips`]).
         let resting = resting_on(&self.below_layers, layer);
-        let strips = resting
+        let under = resting
             .last()
-            .filter(|b| with_strips && b.index + 1 == layer.index)
-            .map(|b| {
+            .filter(|b| with_strips && b.index + 1 == layer.index);
+        // Copies of a part get their representative's strips, moved: made for each, their
+        // booleans' noise differs and each copy's plan was made on its own (a plate of nine
+        // mushrooms: nine plans instead of one).
+        let sources = under.map(|_| {
+            let plain: Vec<(&crate::geometry::Region, &crate::poa::Others)> =
+                chosen.iter().map(|(_, r)| *r).zip(others.iter()).collect();
+            crate::poa::copy_sources(&plain, below, area, widths)
+        });
+        let strips = under
+            .zip(sources.as_ref())
+            .map(|(b, sources)| {
                 anchor_strips(
                     layer,
                     (b, &resting),
                     below,
-                    chosen,
+                    (chosen, sources),
                     widths.loop_width,
                     self.motion.filament_area,
                 )
@@ -2270,18 +2288,36 @@ impl<'a> PoaPass<'a> {
                 strips.iter().flatten().map(|(_, c, _)| c).collect();
             let cavities = crate::geometry::union_all(&cavities);
             below_strips = crate::geometry::difference(below, &cavities);
-            extended = chosen
+            let pairs = chosen
                 .iter()
                 .zip(&strips)
-                .map(|((_, r), s)| match s {
-                    // The strip's loops grow from the walls round it: the region reaches as
-                    // far as its farthest point from them (copies compare their growth's
-                    // end with this bound).
-                    Some((hint, _, strip)) => crate::geometry::Region {
+                .map(|((_, r), s)| (r, s))
+                .collect::<Vec<_>>();
+            // The strip's loops grow from the walls round it: the region reaches as far as
+            // its farthest point from them (copies compare their growth's end with this
+            // bound; a copy's is its representative's).
+            let mut reach: Vec<f64> = Vec::with_capacity(pairs.len());
+            for (i, (r, s)) in pairs.iter().enumerate() {
+                let copied = sources
+                    .as_ref()
+                    .and_then(|v| v.get(i))
+                    .filter(|c| c.0 < i)
+                    .map(|c| reach[c.0]);
+                reach.push(match (copied, s) {
+                    (Some(m), Some(_)) => m,
+                    (_, Some((_, _, strip))) => strip.0.iter().fold(r.max_distance, |m, p| {
+                        m.max(crate::geometry::regions::max_distance(p, &below_strips))
+                    }),
+                    (_, None) => r.max_distance,
+                });
+            }
+            extended = pairs
+                .into_iter()
+                .zip(reach)
+                .map(|((r, s), reach)| match s {
+                    Some((hint, _, _)) => crate::geometry::Region {
                         polygon: hint.clone(),
-                        max_distance: strip.0.iter().fold(r.max_distance, |m, p| {
-                            m.max(crate::geometry::regions::max_distance(p, &below_strips))
-                        }),
+                        max_distance: reach,
                         ..(*r).clone()
                     },
                     None => (*r).clone(),
@@ -2308,12 +2344,19 @@ impl<'a> PoaPass<'a> {
                 &area_strips,
             )
         };
-        let plans: Vec<(usize, RegionKind, Plan, f64)> =
-            crate::poa::plan_all(&jobs, below, area, widths, settings, start)
-                .into_iter()
-                .zip(chosen.iter())
-                .map(|(plan, (id, r))| (*id, r.kind, plan, object_height(layer, r.object)))
-                .collect();
+        let plans: Vec<(usize, RegionKind, Plan, f64)> = crate::poa::plan_all_from(
+            &jobs,
+            below,
+            area,
+            widths,
+            settings,
+            start,
+            sources.as_ref(),
+        )
+        .into_iter()
+        .zip(chosen.iter())
+        .map(|(plan, (id, r))| (*id, r.kind, plan, object_height(layer, r.object)))
+        .collect();
         let mut rewrites = Vec::new();
         // (Every plan is accounted for, strip or not.)
         let strips = strips.into_iter().chain(std::iter::repeat(None));
@@ -2621,6 +2664,10 @@ const MAX_REACH: f64 = 500.0;
 /// the layer rewritten without them.
 const STRIP_GAIN: f64 = 0.5;
 
+/// Margin (mm) round an anchor strip's cavity within which the layer is judged with and
+/// without the strip.
+const STRIP_JUDGED: f64 = 3.0;
+
 /// Smallest strip (mm2) of a bridge's anchors over sparse infill planned with its region.
 const STRIP_MIN: f64 = 2.0;
 
@@ -2657,13 +2704,13 @@ fn anchor_strips(
     layer: &Layer,
     (below, resting): (&Layer, &[&Layer]),
     below_area: &MultiPolygon<f64>,
-    chosen: &Chosen<'_>,
+    (chosen, sources): (&Chosen<'_>, &crate::poa::Sources),
     w: f64,
     filament_area: f64,
 ) -> Vec<Option<Strip>> {
     use geo::{Area, BoundingRect, Intersects};
     use rayon::prelude::*;
-    if !below.paths.iter().any(|p| p.role == Role::Infill) {
+    if chosen.len() > 4 * MAX_STRIP_REGIONS || !below.paths.iter().any(|p| p.role == Role::Infill) {
         return vec![None; chosen.len()];
     }
     // The regions' bridge strands crossing them and the sparse infill near them.
@@ -2672,11 +2719,13 @@ fn anchor_strips(
         Vec<&'r crate::layers::Path>,
         MultiPolygon<f64>,
     )>;
+    let copy_of = |i: usize| sources.get(i).filter(|s| s.0 != i).copied();
     let found: Vec<Found<'_>> = chosen
         .par_iter()
-        .map(|(_, r)| {
+        .enumerate()
+        .map(|(i, (_, r))| {
             let r: &crate::geometry::Region = r;
-            if r.kind == RegionKind::Floating {
+            if r.kind == RegionKind::Floating || copy_of(i).is_some() {
                 return None;
             }
             let rb = r.polygon.bounding_rect()?;
@@ -2749,7 +2798,9 @@ fn anchor_strips(
             )
         })
         .collect();
-    if windows.is_empty() {
+    // (A layer of hundreds of such regions, a damaged file's, keeps its bridges as sliced:
+    // every sample would be tested against every box.)
+    if windows.is_empty() || windows.len() > MAX_STRIP_REGIONS {
         return vec![None; chosen.len()];
     }
     let in_air: Vec<crate::check::Sample> =
@@ -2773,7 +2824,7 @@ fn anchor_strips(
             .map(|s| s.length)
             .sum()
     };
-    found
+    let out: Vec<Option<Strip>> = found
         .into_par_iter()
         .map(|f| {
             let (r, crossing, sparse) = f?;
@@ -2832,8 +2883,25 @@ fn anchor_strips(
             );
             Some((hint, cavity, strip))
         })
+        .collect::<Vec<_>>();
+    // The copies' strips: their representatives', moved.
+    (0..out.len())
+        .map(|i| match copy_of(i) {
+            Some((j, t)) => out[j].as_ref().map(|(hint, cavity, strip)| {
+                use geo::Translate;
+                (
+                    hint.translate(t[0], t[1]),
+                    cavity.translate(t[0], t[1]),
+                    strip.translate(t[0], t[1]),
+                )
+            }),
+            None => out[i].clone(),
+        })
         .collect()
 }
+
+/// Most regions of a layer whose anchor strips are looked for.
+const MAX_STRIP_REGIONS: usize = 64;
 
 /// How far (mm) past the box of the sparse infill beside a region the bridge strands
 /// anchored over it are taken for its strip: across the walls round it, to the region.

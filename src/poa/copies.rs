@@ -215,16 +215,32 @@ pub fn plan_all(
     settings: &PoaSettings,
     start: [f64; 2],
 ) -> Vec<Plan> {
+    plan_all_from(regions, below, area, widths, settings, start, None)
+}
+
+/// Each region's source: itself (a representative), or an earlier region it is a copy of,
+/// moved by the translation given ([`plan_all`]'s matching).
+pub type Sources = Vec<(usize, [f64; 2])>;
+
+/// The copies among `regions` ([`Sources`]), as [`plan_all`] finds them.
+pub fn copy_sources(
+    regions: &[(&Region, &Others)],
+    below: &MultiPolygon<f64>,
+    area: &MultiPolygon<f64>,
+    widths: Widths,
+) -> Sources {
     use rayon::prelude::*;
     let around: Vec<Option<Surroundings<'_>>> = regions
         .par_iter()
         .map(|(r, o)| surroundings(r, o, below, area, &widths))
         .collect();
-    // Each region's source: itself, or an earlier representative and the translation.
+    sources_of(regions, &around)
+}
+
+fn sources_of(regions: &[(&Region, &Others)], around: &[Option<Surroundings<'_>>]) -> Sources {
     // Candidates are looked up by area (to 0.01 mm2; a pair split by the rounding is planned
     // twice), which keeps a layer of many different regions linear.
-    let mut source: Vec<(usize, [f64; 2])> = Vec::with_capacity(regions.len());
-    let mut reps: Vec<usize> = Vec::new();
+    let mut source: Sources = Vec::with_capacity(regions.len());
     let mut by_area: std::collections::HashMap<i64, Vec<usize>> = Default::default();
     for (i, s) in around.iter().enumerate() {
         let key = (regions[i].0.area * 100.0).round() as i64;
@@ -243,12 +259,43 @@ pub fn plan_all(
         match shared {
             Some(found) => source.push(found),
             None => {
-                reps.push(i);
                 by_area.entry(key).or_default().push(i);
                 source.push((i, [0.0, 0.0]));
             }
         }
     }
+    source
+}
+
+/// [`plan_all`], with the copies `given` instead of found: regions whose surroundings were
+/// changed alike for each copy (their noise differs), found copies before the change.
+pub fn plan_all_from(
+    regions: &[(&Region, &Others)],
+    below: &MultiPolygon<f64>,
+    area: &MultiPolygon<f64>,
+    widths: Widths,
+    settings: &PoaSettings,
+    start: [f64; 2],
+    given: Option<&Sources>,
+) -> Vec<Plan> {
+    use rayon::prelude::*;
+    let around: Vec<Option<Surroundings<'_>>> = regions
+        .par_iter()
+        .map(|(r, o)| surroundings(r, o, below, area, &widths))
+        .collect();
+    // Each region's source: itself, or an earlier representative and the translation.
+    let source: Sources = match given {
+        Some(g)
+            if g.len() == regions.len()
+                && g.iter()
+                    .enumerate()
+                    .all(|(i, s)| s.0 <= i && g[s.0].0 == s.0) =>
+        {
+            g.clone()
+        }
+        _ => sources_of(regions, &around),
+    };
+    let reps: Vec<usize> = (0..source.len()).filter(|&i| source[i].0 == i).collect();
     let plan_one = |i: usize| {
         let (r, o) = regions[i];
         // The windows cut for the comparison are what the planner would cut again.
