@@ -2344,7 +2344,7 @@ impl<'a> PoaPass<'a> {
                 &area_strips,
             )
         };
-        let plans: Vec<(usize, RegionKind, Plan, f64)> = crate::poa::plan_all_from(
+        let plans: Vec<(usize, RegionKind, Plan, f64)> = crate::poa::plan_all(
             &jobs,
             below,
             area,

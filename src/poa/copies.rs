@@ -206,18 +206,6 @@ fn translated(plan: &Plan, t: [f64; 2]) -> Plan {
     out
 }
 
-/// Plans of `regions` (each with its [`Others`]), in their order: see the module's doc.
-pub fn plan_all(
-    regions: &[(&Region, &Others)],
-    below: &MultiPolygon<f64>,
-    area: &MultiPolygon<f64>,
-    widths: Widths,
-    settings: &PoaSettings,
-    start: [f64; 2],
-) -> Vec<Plan> {
-    plan_all_from(regions, below, area, widths, settings, start, None)
-}
-
 /// Each region's source: itself (a representative), or an earlier region it is a copy of,
 /// moved by the translation given ([`plan_all`]'s matching).
 pub type Sources = Vec<(usize, [f64; 2])>;
@@ -267,9 +255,10 @@ fn sources_of(regions: &[(&Region, &Others)], around: &[Option<Surroundings<'_>>
     source
 }
 
-/// [`plan_all`], with the copies `given` instead of found: regions whose surroundings were
-/// changed alike for each copy (their noise differs), found copies before the change.
-pub fn plan_all_from(
+/// Plans of `regions` (each with its [`Others`]), in their order: see the module's doc. With
+/// the copies `given`, those instead of the ones found: regions whose surroundings were
+/// changed alike for each copy (their noise differs), copies found before the change.
+pub fn plan_all(
     regions: &[(&Region, &Others)],
     below: &MultiPolygon<f64>,
     area: &MultiPolygon<f64>,
@@ -401,6 +390,7 @@ mod tests {
             widths(),
             &PoaSettings::default(),
             [0.0, 0.0],
+            None,
         )
     }
 

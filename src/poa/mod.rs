@@ -19,7 +19,7 @@ use geo::{Area, MultiPolygon};
 use serde::Serialize;
 
 mod copies;
-pub use copies::{copy_sources, plan_all, plan_all_from, Sources};
+pub use copies::{copy_sources, plan_all, Sources};
 
 use crate::geometry::{
     clip_lines, closing, difference, grow_within, intersection, margin, near, offset, opening,
