@@ -1739,6 +1739,10 @@ pub struct PoaPass<'a> {
     /// The index of the layer [`PoaPass::keep_below`] kept as read back (the newest of
     /// `below_layers` then), if it did.
     kept_reread: Option<usize>,
+    /// The layer rewritten without anchor strips by [`PoaPass::plan_best`] (its index, the
+    /// rewrites' ids, bytes, statistics and read-back layer), which the rewrite then uses
+    /// instead of writing it again.
+    plain_written: Option<PlainWritten>,
     /// E extruded by the layers passed so far (the start G-code's priming left out).
     layers_e: f64,
     config: SlicerConfig,
@@ -1761,6 +1765,7 @@ impl<'a> PoaPass<'a> {
             below_layers: std::collections::VecDeque::new(),
             reread: None,
             kept_reread: None,
+            plain_written: None,
             layers_e: 0.0,
             config: config.clone(),
             report: ProcessReport::default(),
@@ -1972,9 +1977,10 @@ impl<'a> PoaPass<'a> {
     }
 
     /// [`PoaPass::plan`], with the slicer's bridge anchors over sparse infill planned with
-    /// their regions ([`anchor_strips`]) where the layer so rewritten prints less in air
-    /// round its zones than rewritten without them (loops in a strip can leave the part's
-    /// own infill ends beside it in air: a star's cap on its post, 0.1 -> 4.3 mm).
+    /// their regions ([`anchor_strips`]) where they hang as sliced and still hang in the
+    /// layer rewritten without them, and the layer rewritten with them prints less in air
+    /// round them (loops in a strip can leave the part's own infill ends beside it in air: a
+    /// star's cap on its post, 0.1 -> 4.3 mm).
     fn plan_best(
         &mut self,
         d: &crate::geometry::Detected,
@@ -1983,16 +1989,54 @@ impl<'a> PoaPass<'a> {
         chosen: &Chosen<'_>,
         above: Option<&Layer>,
     ) -> Vec<RegionRewrite> {
-        let skipped_at = self.report.skipped.len();
-        let with = self.plan(d, area, left, chosen, true);
-        if with.iter().all(|r| r.no_connect.0.is_empty()) {
-            return with;
-        }
-        let skipped_with = self.report.skipped.split_off(skipped_at);
-        let without = self.plan(d, area, left, chosen, false);
         let layer = &d.layer;
-        let below = resting_on(&self.below_layers, layer);
-        let below = &below[..];
+        self.plain_written = None;
+        let plain = |me: &mut Self| me.plan(d, area, left, chosen, None).unwrap_or_default();
+        // No strip where the slicer's anchors hold as sliced (a probe: nothing planned).
+        if self
+            .plan(d, area, left, chosen, Some((layer, true)))
+            .is_none()
+        {
+            return plain(self);
+        }
+        // The layer rewritten without strips, read back: the slicer's anchor ends beside a
+        // region are anchored or cut there ([`dangling_tails`]), and a strip is planned only
+        // where they still hang.
+        let skipped_at = self.report.skipped.len();
+        let without = plain(self);
+        let skipped_without = self.report.skipped.split_off(skipped_at);
+        let keep_without = |me: &mut Self, without: Vec<RegionRewrite>| {
+            me.report.skipped.truncate(skipped_at);
+            me.report.skipped.extend(skipped_without.iter().cloned());
+            without
+        };
+        let above = above.filter(|a| a.index == layer.index + 1 && a.on_previous());
+        let written = |me: &Self, rewrites: &[RegionRewrite]| {
+            let below = resting_on(&me.below_layers, layer);
+            let (bytes, stats) = rewrite_layer(
+                layer,
+                &below,
+                above,
+                rewrites,
+                &me.motion,
+                &me.opts.settings,
+                BlockPlace::AtEntry,
+            );
+            let back = reread(layer, &bytes, &me.config);
+            (bytes, stats, back)
+        };
+        let (bytes, stats, back) = written(self, &without);
+        let ids: Vec<usize> = without.iter().map(|r| r.id).collect();
+        let Some(back) = back else {
+            return keep_without(self, without);
+        };
+        let with = match self.plan(d, area, left, chosen, Some((&back, false))) {
+            Some(w) if w.iter().any(|r| !r.no_connect.0.is_empty()) => w,
+            _ => {
+                self.plain_written = Some((layer.index, ids, bytes, stats, Some(back)));
+                return keep_without(self, without);
+            }
+        };
         // Judged round the strips only (the rest of the regions' loops are alike): their
         // cavities' boxes grown by a few millimetres, which hold the part's infill ends
         // beside a strip.
@@ -2006,40 +2050,32 @@ impl<'a> PoaPass<'a> {
                 )
             })
             .collect();
-        let above = above.filter(|a| a.index == layer.index + 1 && a.on_previous());
-        let in_air = |rewrites: &[RegionRewrite]| -> f64 {
-            let (bytes, _) = rewrite_layer(
-                layer,
-                below,
-                above,
-                rewrites,
-                &self.motion,
-                &self.opts.settings,
-                BlockPlace::AtEntry,
-            );
-            match reread(layer, &bytes, &self.config) {
-                Some(back) => {
-                    crate::check::samples_inside(below, &back, self.motion.filament_area, &windows)
-                        .iter()
-                        .filter(|s| s.support == crate::check::Support::InAir)
-                        .map(|s| s.length)
-                        .sum()
-                }
-                None => f64::INFINITY,
-            }
+        let in_air = |me: &Self, back: &Layer| -> f64 {
+            let below = resting_on(&me.below_layers, layer);
+            crate::check::samples_inside(&below, back, me.motion.filament_area, &windows)
+                .iter()
+                .filter(|s| s.support == crate::check::Support::InAir)
+                .map(|s| s.length)
+                .sum()
         };
-        let (a, b) = rayon::join(|| in_air(&with), || in_air(&without));
+        let a = written(self, &with)
+            .2
+            .map_or(f64::INFINITY, |b| in_air(self, &b));
+        let b = in_air(self, &back);
         if a + STRIP_GAIN <= b {
-            self.report.skipped.truncate(skipped_at);
-            self.report.skipped.extend(skipped_with);
             with
         } else {
-            without
+            self.plain_written = Some((layer.index, ids, bytes, stats, Some(back)));
+            keep_without(self, without)
         }
     }
 
     /// Plans the chosen regions on all cores; regions where no loop fits go to the report.
-    /// `with_strips`: the slicer's bridge anchors over sparse infill beside a region are
+    /// `strips: Some((judged, probe))`: the slicer's bridge anchors over sparse infill beside
+    /// a region are planned with it where `judged` (the layer as sliced, or as rewritten
+    /// without them) leaves them in air; a probe only says whether any would be (`None`: none;
+    /// `Some` and empty: some), planning nothing. `None` only for a probe. The slicer's bridge
+    /// anchors over sparse infill beside a region are
     /// planned with it ([`anchor_strips`]).
     fn plan(
         &mut self,
@@ -2047,8 +2083,8 @@ impl<'a> PoaPass<'a> {
         area: &MultiPolygon<f64>,
         left: &Chosen<'_>,
         chosen: &Chosen<'_>,
-        with_strips: bool,
-    ) -> Vec<RegionRewrite> {
+        strips: Option<(&Layer, bool)>,
+    ) -> Option<Vec<RegionRewrite>> {
         let layer = &d.layer;
         let start = layer
             .start
@@ -2253,7 +2289,7 @@ impl<'a> PoaPass<'a> {
         let resting = resting_on(&self.below_layers, layer);
         let under = resting
             .last()
-            .filter(|b| with_strips && b.index + 1 == layer.index);
+            .filter(|b| strips.is_some() && b.index + 1 == layer.index);
         // Copies of a part get their representative's strips, moved: made for each, their
         // booleans' noise differs and each copy's plan was made on its own (a plate of nine
         // mushrooms: nine plans instead of one).
@@ -2262,11 +2298,12 @@ impl<'a> PoaPass<'a> {
                 chosen.iter().map(|(_, r)| *r).zip(others.iter()).collect();
             crate::poa::copy_sources(&plain, below, area, widths)
         });
+        let (judged, probe) = strips.unwrap_or((layer, false));
         let strips = under
             .zip(sources.as_ref())
             .map(|(b, sources)| {
                 anchor_strips(
-                    layer,
+                    (layer, judged),
                     (b, &resting),
                     below,
                     (chosen, sources),
@@ -2275,6 +2312,9 @@ impl<'a> PoaPass<'a> {
                 )
             })
             .unwrap_or_else(|| vec![None; chosen.len()]);
+        if probe {
+            return strips.iter().any(|s| s.is_some()).then(Vec::new);
+        }
         let (extended, below_strips, area_strips);
         type Jobs<'j> = Vec<(&'j crate::geometry::Region, &'j crate::poa::Others)>;
         let (jobs, below, area): (Jobs<'_>, _, _) = if strips.iter().all(|s| s.is_none()) {
@@ -2380,7 +2420,7 @@ impl<'a> PoaPass<'a> {
                 });
             }
         }
-        rewrites
+        Some(rewrites)
     }
 
     /// Adds a rewritten layer's filament and time (by the estimator, with the limits in
@@ -2527,21 +2567,36 @@ impl PoaPass<'_> {
         let rewritten = if rewrites.is_empty() {
             None
         } else {
-            let attempt = |place: BlockPlace| {
-                let (bytes, stats) = rewrite_layer(
-                    layer,
-                    &below,
-                    above.filter(|a| a.index == layer.index + 1 && a.on_previous()),
-                    &rewrites,
-                    &self.motion,
-                    &self.opts.settings,
-                    place,
-                );
+            // The layer as the plan's judge wrote it, when these are the rewrites it wrote.
+            let mut cached = self.plain_written.take().filter(|c| {
+                c.0 == layer.index
+                    && c.1.iter().eq(rewrites.iter().map(|r| &r.id))
+                    && rewrites
+                        .iter()
+                        .all(|r| !r.plan.with_perimeter && !r.plan.ladder)
+            });
+            let mut attempt = |place: BlockPlace| {
+                let (bytes, stats, known) =
+                    match cached.take().filter(|_| place == BlockPlace::AtEntry) {
+                        Some((_, _, bytes, stats, back)) => (bytes, stats, Some(back)),
+                        None => {
+                            let (bytes, stats) = rewrite_layer(
+                                layer,
+                                &below,
+                                above.filter(|a| a.index == layer.index + 1 && a.on_previous()),
+                                &rewrites,
+                                &self.motion,
+                                &self.opts.settings,
+                                place,
+                            );
+                            (bytes, stats, None)
+                        }
+                    };
                 // The layer read back, and the estimator's time for it as rewritten and as
                 // sliced, side by side: on a plate's first floating layer each is a few
                 // milliseconds of one core.
                 let (back, planned) = rayon::join(
-                    || reread(layer, &bytes, &self.config),
+                    || known.unwrap_or_else(|| reread(layer, &bytes, &self.config)),
                     || {
                         let (new, old) = rayon::join(
                             || layer_time(&self.limits, layer, &bytes),
@@ -2655,6 +2710,9 @@ impl PoaPass<'_> {
 /// A box, (min, max) corners.
 type Window = ([f64; 2], [f64; 2]);
 
+/// See [`PoaPass::plain_written`].
+type PlainWritten = (usize, Vec<usize>, Vec<u8>, Vec<RewriteStats>, Option<Layer>);
+
 /// Farthest (mm) a region may reach from what the layer below printed and be planned: loops
 /// a step apart out to there would be thousands, and no printer's bed holds such a cantilever
 /// (a fuzzed file's perimeter flung 10 m out took minutes of offsets to plan).
@@ -2701,7 +2759,7 @@ type Strip = (geo::Polygon<f64>, MultiPolygon<f64>, MultiPolygon<f64>);
 /// the infill's gaps. The strip's slicer strands are then replaced by loops like the
 /// region's own.
 fn anchor_strips(
-    layer: &Layer,
+    (layer, judged): (&Layer, &Layer),
     (below, resting): (&Layer, &[&Layer]),
     below_area: &MultiPolygon<f64>,
     (chosen, sources): (&Chosen<'_>, &crate::poa::Sources),
@@ -2804,7 +2862,7 @@ fn anchor_strips(
         return vec![None; chosen.len()];
     }
     let in_air: Vec<crate::check::Sample> =
-        crate::check::samples_inside(resting, layer, filament_area, &windows)
+        crate::check::samples_inside(resting, judged, filament_area, &windows)
             .into_iter()
             .filter(|s| s.support == crate::check::Support::InAir)
             .collect();
@@ -2833,7 +2891,9 @@ fn anchor_strips(
                 .iter()
                 .flat_map(|p| p.seg_line.iter().copied())
                 .collect();
-            if hanging(&sparse, Some(&lines)) < STRIP_AIR {
+            // (The layer as rewritten numbers its lines anew.)
+            let lines = std::ptr::eq(layer, judged).then_some(&lines);
+            if hanging(&sparse, lines) < STRIP_AIR {
                 return None;
             }
             // The strands' footprint near the sparse infill only (a bridge's strands zigzag
@@ -2867,9 +2927,19 @@ fn anchor_strips(
                 ),
                 &sparse,
             );
-            if strip.unsigned_area() < STRIP_MIN || hanging(&strip, None) < STRIP_AIR {
+            if strip.unsigned_area() < STRIP_MIN {
                 return None;
             }
+            // As sliced, the strip's own strands must hang there; as rewritten without it,
+            // anything over the sparse infill beside the region (cut anchors, and the part's
+            // infill that leaned on them) may.
+            if lines.is_some() && hanging(&strip, None) < STRIP_AIR {
+                return None;
+            }
+            let cavity = crate::geometry::intersection(
+                &sparse,
+                &crate::geometry::offset(&strip, STRIP_CAVITY * w),
+            );
             // The bridge's strands join the strip to the region over the walls between them.
             let hint =
                 crate::geometry::union(&MultiPolygon::new(vec![r.polygon.clone()]), &bridges);
@@ -2877,10 +2947,6 @@ fn anchor_strips(
                 1 => hint.0.into_iter().next()?,
                 _ => return None,
             };
-            let cavity = crate::geometry::intersection(
-                &sparse,
-                &crate::geometry::offset(&strip, STRIP_CAVITY * w),
-            );
             Some((hint, cavity, strip))
         })
         .collect::<Vec<_>>();
