@@ -1033,6 +1033,50 @@ fn bridge_anchors_over_sparse_infill_are_planned_with_the_region() {
     }
 }
 
+/// Four mushrooms with sparse rectilinear infill: each cap's bridge is anchored over its
+/// stem's sparse infill, where the anchors ran along the gaps (13.4 mm in air on the caps'
+/// layer when the stems' strips were left as sliced). The copies share one representative's
+/// strips, moved, and its plan (made for each, the strips' booleans differ by noise).
+#[test]
+fn copies_share_their_anchor_strips() {
+    let args = [
+        "--fill-pattern",
+        "rectilinear",
+        "--fill-density",
+        "10%",
+        "--layer-height",
+        "0.15",
+        "--extrusion-width",
+        "0.5",
+        "--duplicate",
+        "4",
+    ];
+    let Some(data) = slice("mushroom", &args) else {
+        return;
+    };
+    let (new, rep) = rewrite(&data, BridgeMode::Auto);
+    let first = rep
+        .rewrites
+        .iter()
+        .map(|r| r.layer)
+        .min()
+        .expect("a rewrite");
+    let caps: Vec<_> = rep.rewrites.iter().filter(|r| r.layer == first).collect();
+    assert_eq!(caps.len(), 4, "{:?}", rep.rewrites);
+    for c in &caps {
+        assert_eq!(c.loops, caps[0].loops, "{c:?}");
+        assert!(
+            (c.written_length_mm - caps[0].written_length_mm).abs() < 0.1,
+            "{c:?}"
+        );
+    }
+    let (before, after) = before_after("four mushrooms, sparse infill", &data, &new);
+    let at = |r: &CheckReport| r.layers.iter().find(|l| l.layer == first).cloned().unwrap();
+    assert!(at(&before).in_air_mm > 100.0);
+    assert!(at(&after).in_air_mm <= 1.0, "{}", at(&after).in_air_mm);
+    no_layer_worse("four mushrooms, sparse infill", &before, &after);
+}
+
 /// A box chamfered on all four sides, more steeply on two: each layer's gradual ring is
 /// wide where the perimeter is moved and a sliver elsewhere, narrower than the perimeter's
 /// pull-in. The slicer's wall along the sliver was taken out with the ring and nothing laid
