@@ -275,13 +275,23 @@ pub fn rewrite_layer(
     let Some(start) = layer.start.as_deref() else {
         return (layer.raw.clone(), Vec::new());
     };
-    let rewrites: Vec<&RegionRewrite> = rewrites
+    let whole: Vec<&RegionRewrite> = rewrites
         .iter()
         .filter(|r| !r.plan.strands.is_empty())
         .collect();
-    if rewrites.is_empty() {
+    if whole.is_empty() {
         return (layer.raw.clone(), Vec::new());
     }
+    // A gradual overhang's zone in pieces apart (a box's chamfer on two opposite sides) is
+    // rewritten piece by piece, each block where the wall enters its piece: one block went
+    // across the part between them.
+    let parts: Vec<(usize, std::borrow::Cow<'_, RegionRewrite>)> = whole
+        .iter()
+        .enumerate()
+        .flat_map(|(i, r)| by_zone_piece(r).into_iter().map(move |p| (i, p)))
+        .collect();
+    let owner: Vec<usize> = parts.iter().map(|(i, _)| *i).collect();
+    let rewrites: Vec<&RegionRewrite> = parts.iter().map(|(_, r)| r.as_ref()).collect();
     // Which lines print part extrusions that may be replaced.
     let mut replaceable: Vec<u64> = layer
         .paths
@@ -547,7 +557,129 @@ pub fn rewrite_layer(
             );
         }
     }
-    (out, stats)
+    (out, merge_stats(stats, &owner))
+}
+
+/// A gradual overhang's rewrite split by the pieces of its zone that lie apart (farther than
+/// [`PIECES_APART`]), each piece with the strands nearest it; any other rewrite whole.
+fn by_zone_piece(r: &RegionRewrite) -> Vec<std::borrow::Cow<'_, RegionRewrite>> {
+    use geo::{BoundingRect, Distance, Euclidean};
+    let whole = || vec![std::borrow::Cow::Borrowed(r)];
+    let polys = &r.plan.zone.0;
+    if !r.plan.with_perimeter || polys.len() < 2 || polys.len() > MAX_PIECES {
+        return whole();
+    }
+    // Pieces of the zone, grouped while any two come within reach of each other.
+    let mut group: Vec<usize> = (0..polys.len()).collect();
+    let boxes: Vec<Option<geo::Rect<f64>>> = polys.iter().map(|p| p.bounding_rect()).collect();
+    for i in 0..polys.len() {
+        for j in i + 1..polys.len() {
+            let near = match (boxes[i], boxes[j]) {
+                (Some(a), Some(b)) => {
+                    a.min().x - PIECES_APART <= b.max().x
+                        && b.min().x - PIECES_APART <= a.max().x
+                        && a.min().y - PIECES_APART <= b.max().y
+                        && b.min().y - PIECES_APART <= a.max().y
+                        && Euclidean.distance(&polys[i], &polys[j]) <= PIECES_APART
+                }
+                _ => true,
+            };
+            if near {
+                let (gi, gj) = (group[i], group[j]);
+                for g in group.iter_mut() {
+                    if *g == gj {
+                        *g = gi;
+                    }
+                }
+            }
+        }
+    }
+    let mut ids: Vec<usize> = group.clone();
+    ids.sort_unstable();
+    ids.dedup();
+    if ids.len() < 2 {
+        return whole();
+    }
+    // Each strand goes with the piece nearest its middle point.
+    let mut strands: Vec<Vec<Strand>> = vec![Vec::new(); ids.len()];
+    for s in &r.plan.strands {
+        let Some(&mid) = s.points.get(s.points.len() / 2) else {
+            continue;
+        };
+        let q = geo::Point::new(mid[0], mid[1]);
+        let nearest = (0..polys.len())
+            .min_by(|&a, &b| {
+                Euclidean
+                    .distance(&polys[a], &q)
+                    .total_cmp(&Euclidean.distance(&polys[b], &q))
+            })
+            .unwrap_or(0);
+        let k = ids.binary_search(&group[nearest]).unwrap_or(0);
+        strands[k].push(s.clone());
+    }
+    // A piece with no strand of its own would lose the slicer's strands there: whole.
+    if strands.iter().any(|s| s.is_empty()) {
+        return whole();
+    }
+    ids.iter()
+        .zip(strands)
+        .map(|(&g, strands)| {
+            let zone = MultiPolygon::new(
+                polys
+                    .iter()
+                    .zip(&group)
+                    .filter(|(_, &h)| h == g)
+                    .map(|(p, _)| p.clone())
+                    .collect(),
+            );
+            std::borrow::Cow::Owned(RegionRewrite {
+                plan: Plan {
+                    zone,
+                    strands,
+                    ..r.plan.clone()
+                },
+                ..r.clone()
+            })
+        })
+        .collect()
+}
+
+/// Pieces of a gradual overhang's zone farther apart than this (mm) are written as blocks of
+/// their own.
+const PIECES_APART: f64 = 5.0;
+
+/// Most pieces of a zone looked at for [`by_zone_piece`] (each pair is compared).
+const MAX_PIECES: usize = 64;
+
+/// The statistics of the pieces of each rewrite (`owner[k]`: the rewrite piece `k` is of)
+/// added up, one per rewrite, in order.
+fn merge_stats(stats: Vec<RewriteStats>, owner: &[usize]) -> Vec<RewriteStats> {
+    let mut out: Vec<RewriteStats> = Vec::new();
+    let mut last = None;
+    for (s, &o) in stats.into_iter().zip(owner) {
+        match out.last_mut().filter(|_| last == Some(o)) {
+            Some(m) => {
+                m.strands += s.strands;
+                m.written_length_mm += s.written_length_mm;
+                m.written_filament_mm += s.written_filament_mm;
+                m.removed_length_mm += s.removed_length_mm;
+                m.removed_filament_mm += s.removed_filament_mm;
+                m.travel_mm += s.travel_mm;
+                m.inner_travel_mm += s.inner_travel_mm;
+                m.longest_inner_travel_mm =
+                    m.longest_inner_travel_mm.max(s.longest_inner_travel_mm);
+                m.connectors += s.connectors;
+                m.time_added_s += s.time_added_s;
+                m.dwell_s += s.dwell_s;
+                m.inserted_before_line = m.inserted_before_line.min(s.inserted_before_line);
+                m.trimmed_ends += s.trimmed_ends;
+                m.anchored_ends += s.anchored_ends;
+            }
+            None => out.push(s),
+        }
+        last = Some(o);
+    }
+    out
 }
 
 /// The source lines of the layer's external (and overhang) perimeters, sorted.
@@ -3511,6 +3643,69 @@ mod tests {
             points,
             width: 0.45,
         }
+    }
+
+    #[test]
+    fn a_gradual_ring_in_pieces_apart_is_written_piece_by_piece() {
+        use crate::geometry::testutil::{mp, rect};
+        // A chamfer's ring on two opposite sides of a box, 20 mm apart: one block each.
+        let rewrite = |zone: MultiPolygon<f64>, strands: Vec<Strand>| RegionRewrite {
+            id: 7,
+            kind: RegionKind::Overhang,
+            plan: Plan {
+                zone,
+                strands,
+                loops: 1,
+                with_perimeter: true,
+                ladder: false,
+            },
+            height: 0.2,
+            no_connect: MultiPolygon::new(Vec::new()),
+        };
+        let sides = mp(vec![rect(0.0, 0.0, 20.0, 0.5), rect(0.0, 20.0, 20.0, 20.5)]);
+        let strands = vec![
+            loop_strand(1, vec![[0.0, 0.25], [20.0, 0.25]]),
+            loop_strand(1, vec![[0.0, 20.25], [20.0, 20.25]]),
+        ];
+        let r = rewrite(sides.clone(), strands.clone());
+        let parts = by_zone_piece(&r);
+        assert_eq!(parts.len(), 2);
+        for p in &parts {
+            assert_eq!(p.plan.zone.0.len(), 1);
+            assert_eq!(p.plan.strands.len(), 1);
+            let y = p.plan.strands[0].points[0][1];
+            let b = geo::BoundingRect::bounding_rect(&p.plan.zone).unwrap();
+            assert!(y >= b.min().y && y <= b.max().y);
+        }
+        // A piece with no strand of its own keeps the rewrite whole (its slicer strands
+        // would be taken out with nothing laid), and so does a wide region's plan.
+        let three = mp(vec![
+            rect(0.0, 0.0, 20.0, 0.5),
+            rect(0.0, 20.0, 20.0, 20.5),
+            rect(40.0, 0.0, 41.0, 20.0),
+        ]);
+        assert_eq!(by_zone_piece(&rewrite(three, strands.clone())).len(), 1);
+        let mut wide = rewrite(sides, strands);
+        wide.plan.with_perimeter = false;
+        assert_eq!(by_zone_piece(&wide).len(), 1);
+        // The pieces' statistics add up to the region's.
+        let st = |len: f64, hop: f64| RewriteStats {
+            region: 7,
+            strands: 1,
+            written_length_mm: len,
+            inner_travel_mm: hop,
+            longest_inner_travel_mm: hop,
+            inserted_before_line: (len * 10.0) as u64,
+            ..Default::default()
+        };
+        let merged = merge_stats(vec![st(20.0, 1.0), st(30.0, 2.0), st(5.0, 0.0)], &[0, 0, 1]);
+        assert_eq!(merged.len(), 2);
+        assert_eq!(merged[0].strands, 2);
+        assert!((merged[0].written_length_mm - 50.0).abs() < 1e-9);
+        assert!((merged[0].inner_travel_mm - 3.0).abs() < 1e-9);
+        assert!((merged[0].longest_inner_travel_mm - 2.0).abs() < 1e-9);
+        assert_eq!(merged[0].inserted_before_line, 200);
+        assert!((merged[1].written_length_mm - 5.0).abs() < 1e-9);
     }
 
     #[test]
