@@ -2889,7 +2889,9 @@ type Strip = (geo::Polygon<f64>, MultiPolygon<f64>, MultiPolygon<f64>);
 /// prints in there beyond the area below), and the sparse infill round the strip, taken out of
 /// the area below so that loops grow into the strip from the walls that hold it, not from
 /// the infill's gaps. The strip's slicer strands are then replaced by loops like the
-/// region's own.
+/// region's own. What hangs is read on `judged`: `layer` itself (its bridge's own strands must
+/// hang in the strip), or `layer` rewritten without strips (anything may still hang over the
+/// sparse infill). A copy (`sources`) gets its representative's strip, moved.
 fn anchor_strips(
     (layer, judged): (&Layer, &Layer),
     (below, resting): (&Layer, &[&Layer]),
