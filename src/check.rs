@@ -8,7 +8,10 @@
 //! (flow model at its height), whatever a comment says. A point of a strand is supported when
 //! material deposited before it (the layer below, or earlier strands of this layer, not the
 //! strand's own last two widths of path unless the path has turned back since) lies within
-//! `(0.5 - overlap_min) x width` of it.
+//! `(0.5 - overlap_min) x width` of it. The first layer's beads count as squashed out by the
+//! file's elephant-foot compensation ([`crate::layers::Layer::spread`]): the slicer draws
+//! that layer's outline in by as much as it spreads, so the part's second layer stands on
+//! its edge (a straight wall sliced with 0.4 mm of compensation read 119 mm in air).
 //! Unsupported runs are *bridged* when supported points bound them on both sides and they span
 //! at most `max_bridge` mm, else *in air*. Density = extruded volume / footprint area / height
 //! (about 1.0 for a normal layer).
@@ -542,7 +545,8 @@ fn segments_of<'a>(
             (0..p.points.len().saturating_sub(1)).map(move |i| Seg {
                 a: p.points[i],
                 b: p.points[i + 1],
-                half: seg_width(p, i, filament_area) / 2.0,
+                // The first layer's beads squash out past their E-width (its spread).
+                half: seg_width(p, i, filament_area) / 2.0 + layer.spread,
             })
         })
 }
@@ -1394,6 +1398,28 @@ mod tests {
         );
         // Only the first ring, on the disk's edge, is held.
         assert!(c.in_air_mm / c.length_mm > 0.7, "{c:?}");
+    }
+
+    #[test]
+    fn a_first_layer_squashed_out_by_its_compensation_holds_a_wall_half_a_bead_past_it() {
+        // The disk's outer bead is centred at 4.95 mm: a wall at 5.45 hangs 0.5 mm past it,
+        // its inner edge 0.05 mm past the first layer's nominal bead.
+        let fa = filament_area(1.75);
+        let above = rings(5.45, 5.45, 0.45);
+        let check = |spread: f64| {
+            let mut below = disk(5.0);
+            below.index = 0;
+            below.spread = spread;
+            check_layer(&[&below], &above, fa, &CheckOptions::default(), false)
+        };
+        let nominal = check(0.0);
+        assert!(nominal.in_air_mm / nominal.length_mm > 0.95, "{nominal:?}");
+        // PrusaSlicer's default compensation, 0.2 mm: the squashed bead reaches 5.375.
+        let squashed = check(0.2);
+        assert!(
+            squashed.supported_mm / squashed.length_mm > 0.99,
+            "{squashed:?}"
+        );
     }
 
     #[test]

@@ -3282,6 +3282,7 @@ fn reread(layer: &Layer, bytes: &[u8], config: &SlicerConfig) -> Option<Layer> {
         walls_on_previous: layer.walls_on_previous,
         contact: layer.contact.clone(),
         helical: layer.helical,
+        spread: layer.spread,
         paths,
         first_line: layer.first_line,
         last_line: layer.last_line,

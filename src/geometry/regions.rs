@@ -774,6 +774,7 @@ mod tests {
             walls_on_previous: true,
             contact: Vec::new(),
             helical: false,
+            spread: 0.0,
             paths: Vec::new(),
             first_line: 1,
             last_line: 1,

@@ -132,6 +132,10 @@ pub struct Layer {
     /// Z rises while the layer extrudes (a spiral vase's turn, a non-planar print): no layer
     /// below it at one height, nothing poa rewrites.
     pub helical: bool,
+    /// How far this layer's beads squash out past their E-width (mm): the first layer's
+    /// elephant foot, which PrusaSlicer's `elefant_foot_compensation` draws the outline in
+    /// by so that the squashed layer ends on it; 0 on every other layer.
+    pub spread: f64,
     pub paths: Vec<Path>,
     /// First and last source line (inclusive). An empty block has `last_line < first_line`.
     pub first_line: u64,
@@ -368,6 +372,8 @@ struct State {
     keep_raw: bool,
     filament_area: f64,
     config_layer_height: Option<f64>,
+    /// [`Layer::spread`] of the first layer.
+    first_layer_spread: f64,
     facts: FileFacts,
     objects: Vec<String>,
     /// What identifies each object in the file (label text, M486 id).
@@ -558,6 +564,7 @@ impl State {
                 .then(|| cfg.nozzle_diameter()),
             wall_samples: Vec::new(),
             config_layer_height: cfg.layer_height(),
+            first_layer_spread: cfg.elephant_foot(),
             markers_promised: producer
                 .as_ref()
                 .is_some_and(|p| p.0.writes_layer_markers()),
@@ -1245,7 +1252,7 @@ impl State {
             self.prev_layer_z = z;
             self.last_height = height;
         }
-        Layer {
+        let mut layer = Layer {
             kind: b.kind,
             index: if is_layer { index } else { 0 },
             marker_number: b.marker_number,
@@ -1255,13 +1262,18 @@ impl State {
             walls_on_previous,
             contact,
             helical: b.helical,
+            spread: 0.0,
             paths,
             first_line: b.first_line,
             last_line: b.last_line,
             raw: b.raw,
             start: b.start,
             objects: std::mem::take(&mut self.objects_changed).then(|| self.objects.clone()),
+        };
+        if layer.on_bed() {
+            layer.spread = self.first_layer_spread;
         }
+        layer
     }
 
     fn finish_input(&mut self) {
@@ -1340,6 +1352,7 @@ pub(crate) mod testing {
             walls_on_previous: index >= 1,
             contact: Vec::new(),
             helical: false,
+            spread: 0.0,
             paths,
             first_line: 1,
             last_line: 1,

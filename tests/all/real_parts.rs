@@ -465,6 +465,28 @@ fn a_hull_side_keeps_the_outline_the_layer_above_stands_on() {
     }
 }
 
+/// PrusaSlicer draws the first layer in by its elephant-foot compensation (0.2 mm by
+/// default) because the squashed layer spreads that far. The check counts it spread: a
+/// straight post's second layer stands on it even at 0.4 mm (read as 119 mm in air before),
+/// and the hull's flared second layer, whose region poa finds against the spread layer, is
+/// held by poa's loops (by the nominal first layer that layer read 70.9 mm in air as sliced
+/// and 42.8 after poa, whose regions disagreed with the check).
+#[test]
+fn the_second_layer_stands_on_the_first_layer_squashed_out() {
+    let Some(post) = slice("mushroom", &["--elefant-foot-compensation", "0.4"]) else {
+        return;
+    };
+    let c = check(&post);
+    assert!(c.layers[1].in_air_mm < 0.5, "{:?}", c.layers[1]);
+    let Some(d) = slice("hull", &[]) else {
+        return;
+    };
+    let (new, _) = rewrite(&d, BridgeMode::Auto);
+    let (before, after) = (check(&d), check(&new));
+    assert!(before.layers[1].in_air_mm > 5.0, "{:?}", before.layers[1]);
+    held_up("hull by PrusaSlicer", &before, &after, 5.0);
+}
+
 /// The hull with one perimeter round a honeycomb infill and a 0.6 mm nozzle: the layer above
 /// a moved perimeter is searched on the layer as rewritten and read back, where strands cut
 /// at a zone's edge split the infill's outline into pockets left open. The honeycomb's cells
