@@ -646,7 +646,7 @@ fn by_zone_piece(r: &RegionRewrite) -> Vec<std::borrow::Cow<'_, RegionRewrite>> 
 
 /// Pieces of a gradual overhang's zone farther apart than this (mm) are written as blocks of
 /// their own.
-const PIECES_APART: f64 = 5.0;
+const PIECES_APART: f64 = 2.0;
 
 /// Most pieces of a zone looked at for [`by_zone_piece`] (each pair is compared).
 const MAX_PIECES: usize = 64;

@@ -463,7 +463,7 @@ pub(super) fn plan_in(
         )
         .buffer();
         let zone = intersection(&zone, &along_new);
-        orient(&mut strands, start);
+        arrange(&mut strands, start);
         return Plan {
             zone,
             strands,
@@ -656,7 +656,7 @@ pub(super) fn plan_in(
     );
     let loops_count = strands.iter().map(|s| s.loop_index).max().unwrap_or(0);
     strands.extend(finish_order(contour, perimeter, w, we, &mut at));
-    orient(&mut strands, start);
+    arrange(&mut strands, start);
     Plan {
         zone,
         strands,
@@ -737,7 +737,7 @@ fn ladder(
         }
         front = next;
     }
-    orient(&mut strands, start);
+    arrange(&mut strands, start);
     (loops > 0).then(|| Plan {
         zone: zone.clone(),
         strands,
@@ -826,6 +826,7 @@ fn order_loops(
 /// `at` (see [`order`]): a gradual overhang's block is planned before the writer knows
 /// where the nozzle will be, and starts there once it does.
 pub fn reorder_from(strands: &[Strand], mut at: [f64; 2]) -> Vec<Strand> {
+    let start = at;
     let mut out: Vec<Strand> = Vec::with_capacity(strands.len());
     let mut i = 0;
     while i < strands.len() {
@@ -843,6 +844,7 @@ pub fn reorder_from(strands: &[Strand], mut at: [f64; 2]) -> Vec<Strand> {
         out.extend(shape.strands(pieces, 0.0, &mut at));
         i = j;
     }
+    sequence(&mut out, start);
     out
 }
 
@@ -1109,6 +1111,145 @@ fn cut_ring(p: &mut Polyline, i: usize, t: f64) {
     *p = ring;
 }
 
+/// Most strands [`sequence`] orders exactly: its table has 2^n x n x 2 entries.
+const MAX_SEQUENCED: usize = 10;
+
+/// A plan's strands laid in the order and directions of least travel from `start`:
+/// [`orient`], then, for a plan of at most [`MAX_SEQUENCED`] strands, [`sequence`].
+fn arrange(strands: &mut Vec<Strand>, start: [f64; 2]) {
+    orient(strands, start);
+    sequence(strands, start);
+}
+
+/// Travel from `start` through `strands` as laid.
+fn travel_of(strands: &[Strand], start: [f64; 2]) -> f64 {
+    let mut at = start;
+    let mut sum = 0.0;
+    for s in strands {
+        if let (Some(&a), Some(&b)) = (s.points.first(), s.points.last()) {
+            sum += dist2(at, a).sqrt();
+            at = b;
+        }
+    }
+    sum
+}
+
+/// Re-orders a plan of few strands for the least travel from `start`, exactly (a table over
+/// the sets of strands laid, the last one and its direction). Pieces of one rank (one loop,
+/// the contour, the perimeter) go in any order and either way round; two strands of
+/// different ranks that lie beside each other (boxes within two widths) keep the order the
+/// plan gave them, since the later one leans on the earlier. The greedy order takes the
+/// nearest free piece and cannot see that a piece laid the other way, or one left for
+/// later, saves a crossing: a hull's bow region, its loop in two arms along the sides,
+/// crossed from arm to arm and back (17.1 mm of travel for 60.3 mm of loops). The plan's
+/// order is kept unless the new one travels less.
+fn sequence(strands: &mut Vec<Strand>, start: [f64; 2]) {
+    let n = strands.len();
+    if !(2..=MAX_SEQUENCED).contains(&n) || strands.iter().any(|s| s.points.is_empty()) {
+        return;
+    }
+    let rank = |s: &Strand| (s.kind as usize, s.loop_index);
+    let boxes: Vec<Option<geo::Rect<f64>>> = strands
+        .iter()
+        .map(|s| crate::geometry::points_box(&s.points))
+        .collect();
+    let near = |j: usize, k: usize| {
+        let g = 2.0 * strands[j].width.max(strands[k].width);
+        match (&boxes[j], &boxes[k]) {
+            (Some(a), Some(b)) => {
+                a.min().x - g <= b.max().x
+                    && b.min().x - g <= a.max().x
+                    && a.min().y - g <= b.max().y
+                    && b.min().y - g <= a.max().y
+            }
+            _ => true,
+        }
+    };
+    // after[k]: the strands that must be laid before strand k.
+    let after: Vec<u32> = (0..n)
+        .map(|k| {
+            (0..k)
+                .filter(|&j| rank(&strands[j]) != rank(&strands[k]) && near(j, k))
+                .fold(0u32, |m, j| m | 1 << j)
+        })
+        .collect();
+    let open: Vec<bool> = strands
+        .iter()
+        .map(|s| s.points.len() >= 2 && !is_closed(&s.points))
+        .collect();
+    let ends = |k: usize, o: usize| {
+        let p = &strands[k].points;
+        let (a, b) = (p[0], p[p.len() - 1]);
+        if o == 1 {
+            (b, a)
+        } else {
+            (a, b)
+        }
+    };
+    // cost[(mask * n + last) * 2 + o], and the (last, o) before it.
+    let full = (1usize << n) - 1;
+    let at = |mask: usize, last: usize, o: usize| (mask * n + last) * 2 + o;
+    let mut cost = vec![f64::INFINITY; (full + 1) * n * 2];
+    let mut from = vec![(u8::MAX, 0u8); (full + 1) * n * 2];
+    for k in (0..n).filter(|&k| after[k] == 0) {
+        for o in 0..1 + open[k] as usize {
+            cost[at(1 << k, k, o)] = dist2(start, ends(k, o).0).sqrt();
+        }
+    }
+    for mask in 1..=full {
+        for last in (0..n).filter(|&l| mask & 1 << l != 0) {
+            for lo in 0..2 {
+                let c = cost[at(mask, last, lo)];
+                if !c.is_finite() {
+                    continue;
+                }
+                let end = ends(last, lo).1;
+                for k in (0..n).filter(|&k| mask & 1 << k == 0 && after[k] as usize & !mask == 0) {
+                    let next = mask | 1 << k;
+                    for o in 0..1 + open[k] as usize {
+                        let v = c + dist2(end, ends(k, o).0).sqrt();
+                        if v < cost[at(next, k, o)] {
+                            cost[at(next, k, o)] = v;
+                            from[at(next, k, o)] = (last as u8, lo as u8);
+                        }
+                    }
+                }
+            }
+        }
+    }
+    let Some((best, mut last, mut o)) = (0..n)
+        .flat_map(|l| [(l, 0), (l, 1)])
+        .map(|(l, o)| (cost[at(full, l, o)], l, o))
+        .min_by(|a, b| a.0.total_cmp(&b.0))
+    else {
+        return;
+    };
+    if !best.is_finite() || best >= travel_of(strands, start) - 1e-6 {
+        return;
+    }
+    let mut order: Vec<(usize, usize)> = Vec::with_capacity(n);
+    let mut mask = full;
+    loop {
+        order.push((last, o));
+        let (pl, po) = from[at(mask, last, o)];
+        mask &= !(1 << last);
+        if pl == u8::MAX {
+            break;
+        }
+        (last, o) = (pl as usize, po as usize);
+    }
+    order.reverse();
+    let mut taken: Vec<Option<Strand>> = strands.drain(..).map(Some).collect();
+    for (k, o) in order {
+        if let Some(mut s) = taken[k].take() {
+            if o == 1 {
+                s.points.reverse();
+            }
+            strands.push(s);
+        }
+    }
+}
+
 /// Turns the open strands of a plan end for end where that shortens the travel between
 /// them, keeping their order (each strand rests on those before it, whichever way it is
 /// laid): the order is chosen a group at a time from where the nozzle is, so the last
@@ -1262,6 +1403,110 @@ mod tests {
             best = best.min(travel(&w, [0.0, 0.0]));
         }
         assert!((after - best).abs() < 1e-9, "{after} vs {best}");
+    }
+
+    /// Every order of the strands that keeps each pair of different ranks lying beside
+    /// each other as given, each open strand either way round: the least travel.
+    fn least_travel_by_brute_force(v: &[Strand], start: [f64; 2]) -> f64 {
+        fn permute(k: usize, idx: &mut Vec<usize>, f: &mut impl FnMut(&[usize])) {
+            if k == idx.len() {
+                f(idx);
+                return;
+            }
+            for i in k..idx.len() {
+                idx.swap(k, i);
+                permute(k + 1, idx, f);
+                idx.swap(k, i);
+            }
+        }
+        let n = v.len();
+        let mut best = f64::INFINITY;
+        let mut idx: Vec<usize> = (0..n).collect();
+        let beside = |a: &Strand, b: &Strand| {
+            let (x, y) = (
+                crate::geometry::points_box(&a.points).unwrap(),
+                crate::geometry::points_box(&b.points).unwrap(),
+            );
+            let g = 2.0 * a.width.max(b.width);
+            x.min().x - g <= y.max().x
+                && y.min().x - g <= x.max().x
+                && x.min().y - g <= y.max().y
+                && y.min().y - g <= x.max().y
+        };
+        permute(0, &mut idx, &mut |order: &[usize]| {
+            let pos = |k: usize| order.iter().position(|&o| o == k).unwrap();
+            for j in 0..n {
+                for k in j + 1..n {
+                    let ranked = (v[j].kind, v[j].loop_index) != (v[k].kind, v[k].loop_index);
+                    if ranked && beside(&v[j], &v[k]) && pos(j) > pos(k) {
+                        return;
+                    }
+                }
+            }
+            for flips in 0..1u32 << n {
+                let w: Vec<Strand> = order
+                    .iter()
+                    .enumerate()
+                    .map(|(i, &k)| {
+                        let mut s = v[k].clone();
+                        if flips & 1 << i != 0 {
+                            s.points.reverse();
+                        }
+                        s
+                    })
+                    .collect();
+                best = best.min(travel_of(&w, start));
+            }
+        });
+        best
+    }
+
+    #[test]
+    fn few_strands_are_laid_in_the_order_of_least_travel_keeping_what_leans_on_what() {
+        // Random short strands of two loops and a perimeter in a 10 mm square (a fixed
+        // linear congruential sequence), as a greedy order might give them.
+        let mut seed = 12345u64;
+        let mut rnd = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 33) as f64 / (1u64 << 31) as f64
+        };
+        for case in 0..40 {
+            let n = 3 + case % 4;
+            let mut v: Vec<Strand> = (0..n)
+                .map(|i| {
+                    let a = [10.0 * rnd(), 10.0 * rnd()];
+                    let b = [a[0] + 3.0 * rnd() - 1.5, a[1] + 3.0 * rnd() - 1.5];
+                    let (kind, loop_index) = match i * 3 / n {
+                        0 => (StrandKind::Loop, 1),
+                        1 => (StrandKind::Loop, 2),
+                        _ => (StrandKind::Perimeter, 0),
+                    };
+                    Strand {
+                        kind,
+                        loop_index,
+                        points: vec![a, b],
+                        width: 0.45,
+                    }
+                })
+                .collect();
+            let start = [0.0, 0.0];
+            let best = least_travel_by_brute_force(&v, start);
+            let given = v.clone();
+            arrange(&mut v, start);
+            let after = travel_of(&v, start);
+            assert!(
+                (after - best).abs() < 1e-9,
+                "case {case}: {after} vs {best}"
+            );
+            // The same strands, each once, either way round.
+            assert_eq!(v.len(), given.len());
+            for g in &given {
+                let r: Vec<[f64; 2]> = g.points.iter().rev().copied().collect();
+                assert!(v.iter().any(|s| s.points == g.points || s.points == r));
+            }
+        }
     }
 
     fn default_overlap() -> f64 {
