@@ -239,10 +239,14 @@ impl SlicerConfig {
             .unwrap_or(0.4)
     }
 
-    /// How far the first layer is drawn in from the outline (PrusaSlicer's
-    /// `elefant_foot_compensation`, mm); 0 when unset or out of range.
+    /// How far the first layer is drawn in from the outline (mm): PrusaSlicer's and
+    /// OrcaSlicer's `elefant_foot_compensation`; SuperSlicer's `first_layer_size_compensation`
+    /// and Cura's `xy_offset_layer_0` state it negative. 0 when unset or out of range.
     pub fn elephant_foot(&self) -> f64 {
+        let drawn_in = |key: &str| self.number(key).map(|v| -v);
         self.number("elefant_foot_compensation")
+            .or_else(|| drawn_in("first_layer_size_compensation"))
+            .or_else(|| drawn_in("xy_offset_layer_0"))
             .filter(|v| (0.0..=2.0).contains(v))
             .unwrap_or(0.0)
     }
@@ -444,6 +448,27 @@ mod tests {
         assert_eq!(cfg.number("layer_height"), Some(0.12));
         assert_eq!(cfg.number("wall_line_count"), Some(3.0));
         assert_eq!(cfg.get("gcode_flavor"), Some("Marlin"));
+    }
+
+    #[test]
+    fn the_first_layer_compensation_is_read_from_every_family() {
+        let ps = SlicerConfig::parse(b"; elefant_foot_compensation = 0.2\n");
+        assert_eq!(ps.elephant_foot(), 0.2);
+        let ss = SlicerConfig::parse(b"; first_layer_size_compensation = -0.15\n");
+        assert_eq!(ss.elephant_foot(), 0.15);
+        let cura = SlicerConfig::parse(
+            b";SETTING_3 {\"global_quality\": \"[values]\\\\nxy_offset_layer_0 = -0.1\\\\n\"}\n",
+        );
+        assert_eq!(cura.elephant_foot(), 0.1);
+        // Grown, not drawn in; or out of range: no spread.
+        assert_eq!(
+            SlicerConfig::parse(b"; first_layer_size_compensation = 0.3\n").elephant_foot(),
+            0.0
+        );
+        assert_eq!(
+            SlicerConfig::parse(b"; elefant_foot_compensation = 1e9\n").elephant_foot(),
+            0.0
+        );
     }
 
     #[test]

@@ -1137,7 +1137,7 @@ fn travel_of(strands: &[Strand], start: [f64; 2]) -> f64 {
 /// Re-orders a plan of few strands for the least travel from `start`, exactly (a table over
 /// the sets of strands laid, the last one and its direction). Pieces of one rank (one loop,
 /// the contour, the perimeter) go in any order and either way round; two strands of
-/// different ranks that lie beside each other (boxes within two widths) keep the order the
+/// different ranks that lie beside each other (within two widths) keep the order the
 /// plan gave them, since the later one leans on the earlier. The greedy order takes the
 /// nearest free piece and cannot see that a piece laid the other way, or one left for
 /// later, saves a crossing: a hull's bow region, its loop in two arms along the sides,
@@ -1153,7 +1153,17 @@ fn sequence(strands: &mut Vec<Strand>, start: [f64; 2]) {
         .iter()
         .map(|s| crate::geometry::points_box(&s.points))
         .collect();
+    let lines: Vec<geo::LineString<f64>> = strands
+        .iter()
+        .map(|s| {
+            s.points
+                .iter()
+                .map(|p| geo::coord! { x: p[0], y: p[1] })
+                .collect()
+        })
+        .collect();
     let near = |j: usize, k: usize| {
+        use geo::{Distance, Euclidean};
         let g = 2.0 * strands[j].width.max(strands[k].width);
         match (&boxes[j], &boxes[k]) {
             (Some(a), Some(b)) => {
@@ -1161,6 +1171,7 @@ fn sequence(strands: &mut Vec<Strand>, start: [f64; 2]) {
                     && b.min().x - g <= a.max().x
                     && a.min().y - g <= b.max().y
                     && b.min().y - g <= a.max().y
+                    && Euclidean.distance(&lines[j], &lines[k]) <= g
             }
             _ => true,
         }
@@ -1428,10 +1439,18 @@ mod tests {
                 crate::geometry::points_box(&b.points).unwrap(),
             );
             let g = 2.0 * a.width.max(b.width);
+            let line = |s: &Strand| -> geo::LineString<f64> {
+                s.points
+                    .iter()
+                    .map(|p| geo::coord! { x: p[0], y: p[1] })
+                    .collect()
+            };
+            use geo::{Distance, Euclidean};
             x.min().x - g <= y.max().x
                 && y.min().x - g <= x.max().x
                 && x.min().y - g <= y.max().y
                 && y.min().y - g <= x.max().y
+                && Euclidean.distance(&line(a), &line(b)) <= g
         };
         permute(0, &mut idx, &mut |order: &[usize]| {
             let pos = |k: usize| order.iter().position(|&o| o == k).unwrap();
