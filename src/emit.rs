@@ -574,16 +574,11 @@ fn by_zone_piece(r: &RegionRewrite) -> Vec<std::borrow::Cow<'_, RegionRewrite>> 
     let boxes: Vec<Option<geo::Rect<f64>>> = polys.iter().map(|p| p.bounding_rect()).collect();
     for i in 0..polys.len() {
         for j in i + 1..polys.len() {
-            let near = match (boxes[i], boxes[j]) {
-                (Some(a), Some(b)) => {
-                    a.min().x - PIECES_APART <= b.max().x
-                        && b.min().x - PIECES_APART <= a.max().x
-                        && a.min().y - PIECES_APART <= b.max().y
-                        && b.min().y - PIECES_APART <= a.max().y
-                        && Euclidean.distance(&polys[i], &polys[j]) <= PIECES_APART
-                }
-                _ => true,
-            };
+            let near =
+                crate::geometry::boxes_within(boxes[i].as_ref(), boxes[j].as_ref(), PIECES_APART)
+                    && (boxes[i].is_none()
+                        || boxes[j].is_none()
+                        || Euclidean.distance(&polys[i], &polys[j]) <= PIECES_APART);
             if near {
                 let (gi, gj) = (group[i], group[j]);
                 for g in group.iter_mut() {
@@ -2206,9 +2201,7 @@ impl<'a> PoaPass<'a> {
     /// `strips: Some((judged, probe))`: the slicer's bridge anchors over sparse infill beside
     /// a region are planned with it where `judged` (the layer as sliced, or as rewritten
     /// without them) leaves them in air; a probe only says whether any would be (`None`: none;
-    /// `Some` and empty: some), planning nothing. `None` only for a probe. The slicer's bridge
-    /// anchors over sparse infill beside a region are
-    /// planned with it ([`anchor_strips`]).
+    /// `Some` and empty: some), planning nothing ([`anchor_strips`]). `None` only for a probe.
     fn plan(
         &mut self,
         d: &crate::geometry::Detected,

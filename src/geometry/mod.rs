@@ -201,6 +201,20 @@ pub fn box_groups(boxes: &[Box2]) -> Vec<Vec<usize>> {
 /// of what a printer positions to and keeps fronts light.
 pub const FRONT_TOLERANCE: f64 = 0.02;
 
+/// Whether two boxes come within `gap` of each other (0: they touch or overlap); a missing
+/// box (no points) is taken as near anything.
+pub fn boxes_within(a: Option<&geo::Rect<f64>>, b: Option<&geo::Rect<f64>>, gap: f64) -> bool {
+    match (a, b) {
+        (Some(a), Some(b)) => {
+            a.min().x - gap <= b.max().x
+                && b.min().x - gap <= a.max().x
+                && a.min().y - gap <= b.max().y
+                && b.min().y - gap <= a.max().y
+        }
+        _ => true,
+    }
+}
+
 /// Bounding box of a polyline; `None` when it has no point.
 pub fn points_box(points: &[[f64; 2]]) -> Option<geo::Rect<f64>> {
     let first = points.first()?;

@@ -355,10 +355,7 @@ fn support_only(r: &Region, layer: &Layer, boxes: &[Option<Rect<f64>>]) -> bool 
 }
 
 pub(super) fn boxes_meet(a: &Rect<f64>, b: &Rect<f64>) -> bool {
-    a.min().x <= b.max().x
-        && b.min().x <= a.max().x
-        && a.min().y <= b.max().y
-        && b.min().y <= a.max().y
+    super::boxes_within(Some(a), Some(b), 0.0)
 }
 
 /// `here - (below grown by tol)`, part by part: each polygon of `here` (they are disjoint)

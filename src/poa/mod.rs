@@ -773,14 +773,8 @@ fn order_loops(
     }
     let n = pieces.len();
     let grow = 1.5 * step;
-    let meets = |a: &Option<geo::Rect<f64>>, b: &Option<geo::Rect<f64>>| match (a, b) {
-        (Some(a), Some(b)) => {
-            a.min().x - grow <= b.max().x
-                && b.min().x <= a.max().x + grow
-                && a.min().y - grow <= b.max().y
-                && b.min().y <= a.max().y + grow
-        }
-        _ => true,
+    let meets = |a: &Option<geo::Rect<f64>>, b: &Option<geo::Rect<f64>>| {
+        crate::geometry::boxes_within(a.as_ref(), b.as_ref(), grow)
     };
     // Supports of each piece: indices of pieces of the loop before that it may rest on.
     let supports: Vec<Vec<usize>> = (0..n)
@@ -1165,16 +1159,8 @@ fn sequence(strands: &mut Vec<Strand>, start: [f64; 2]) {
     let near = |j: usize, k: usize| {
         use geo::{Distance, Euclidean};
         let g = 2.0 * strands[j].width.max(strands[k].width);
-        match (&boxes[j], &boxes[k]) {
-            (Some(a), Some(b)) => {
-                a.min().x - g <= b.max().x
-                    && b.min().x - g <= a.max().x
-                    && a.min().y - g <= b.max().y
-                    && b.min().y - g <= a.max().y
-                    && Euclidean.distance(&lines[j], &lines[k]) <= g
-            }
-            _ => true,
-        }
+        crate::geometry::boxes_within(boxes[j].as_ref(), boxes[k].as_ref(), g)
+            && Euclidean.distance(&lines[j], &lines[k]) <= g
     };
     // after[k]: the strands that must be laid before strand k.
     let after: Vec<u32> = (0..n)
@@ -1434,23 +1420,14 @@ mod tests {
         let mut best = f64::INFINITY;
         let mut idx: Vec<usize> = (0..n).collect();
         let beside = |a: &Strand, b: &Strand| {
-            let (x, y) = (
-                crate::geometry::points_box(&a.points).unwrap(),
-                crate::geometry::points_box(&b.points).unwrap(),
-            );
-            let g = 2.0 * a.width.max(b.width);
+            use geo::{Distance, Euclidean};
             let line = |s: &Strand| -> geo::LineString<f64> {
                 s.points
                     .iter()
                     .map(|p| geo::coord! { x: p[0], y: p[1] })
                     .collect()
             };
-            use geo::{Distance, Euclidean};
-            x.min().x - g <= y.max().x
-                && y.min().x - g <= x.max().x
-                && x.min().y - g <= y.max().y
-                && y.min().y - g <= x.max().y
-                && Euclidean.distance(&line(a), &line(b)) <= g
+            Euclidean.distance(&line(a), &line(b)) <= 2.0 * a.width.max(b.width)
         };
         permute(0, &mut idx, &mut |order: &[usize]| {
             let pos = |k: usize| order.iter().position(|&o| o == k).unwrap();
