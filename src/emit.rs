@@ -2115,13 +2115,19 @@ impl<'a> PoaPass<'a> {
         left: &Chosen<'_>,
         chosen: &Chosen<'_>,
         above: Option<&Layer>,
+        above_regions: &[crate::geometry::Region],
     ) -> Vec<RegionRewrite> {
         let layer = &d.layer;
         self.plain_written = None;
-        let plain = |me: &mut Self| me.plan(d, area, left, chosen, None).unwrap_or_default();
+        let above = above.filter(|a| a.index == layer.index + 1 && a.on_previous());
+        let next = above.map(|a| (a, above_regions));
+        let plain = |me: &mut Self| {
+            me.plan(d, area, left, chosen, None, next)
+                .unwrap_or_default()
+        };
         // No strip where the slicer's anchors hold as sliced (a probe: nothing planned).
         if self
-            .plan(d, area, left, chosen, Some((layer, true)))
+            .plan(d, area, left, chosen, Some((layer, true)), next)
             .is_none()
         {
             return plain(self);
@@ -2137,7 +2143,6 @@ impl<'a> PoaPass<'a> {
             me.report.skipped.extend(skipped_without.iter().cloned());
             without
         };
-        let above = above.filter(|a| a.index == layer.index + 1 && a.on_previous());
         let written = |me: &Self, rewrites: &[RegionRewrite]| {
             let below = resting_on(&me.below_layers, layer);
             let (bytes, stats) = rewrite_layer(
@@ -2157,7 +2162,7 @@ impl<'a> PoaPass<'a> {
         let Some(back) = back else {
             return keep_without(self, without);
         };
-        let with = match self.plan(d, area, left, chosen, Some((&back, false))) {
+        let with = match self.plan(d, area, left, chosen, Some((&back, false)), next) {
             Some(w) if w.iter().any(|r| !r.no_connect.0.is_empty()) => w,
             _ => {
                 self.plain_written = Some((layer.index, ids, bytes, stats, Some(back)));
@@ -2209,6 +2214,7 @@ impl<'a> PoaPass<'a> {
         left: &Chosen<'_>,
         chosen: &Chosen<'_>,
         strips: Option<(&Layer, bool)>,
+        above: Option<(&Layer, &[crate::geometry::Region])>,
     ) -> Option<Vec<RegionRewrite>> {
         let layer = &d.layer;
         let start = layer
@@ -2401,6 +2407,9 @@ impl<'a> PoaPass<'a> {
                         o.keep_out.0.push(f.polygon.clone());
                     }
                 }
+                if let Some((_, regions)) = above {
+                    o.overhung = overhung(regions, r, &widths);
+                }
                 o
             })
             .collect();
@@ -2583,17 +2592,19 @@ impl<'a> PoaPass<'a> {
 
 impl Pass for PoaPass<'_> {
     fn layer(&mut self, d: &crate::geometry::Detected) -> Result<Option<Vec<u8>>, Error> {
-        self.layer_under(d, None)
+        self.layer_under(d, None, &[])
     }
 }
 
 impl PoaPass<'_> {
     /// [`Pass::layer`] knowing the layer printed next (`above`, as read), which may rest on
-    /// the ends of this layer's strands: those are not cut away.
+    /// the ends of this layer's strands: those are not cut away; and the regions found on it
+    /// (`above_regions`, against this layer as sliced).
     pub fn layer_under(
         &mut self,
         d: &crate::geometry::Detected,
         above: Option<&Layer>,
+        above_regions: &[crate::geometry::Region],
     ) -> Result<Option<Vec<u8>>, Error> {
         // Above a rewritten layer the regions are found again on the layer as rewritten:
         // a perimeter moved in there moves this layer's support.
@@ -2621,7 +2632,7 @@ impl PoaPass<'_> {
         let rewrites = if chosen.is_empty() {
             Vec::new()
         } else {
-            self.plan_best(d, area(), &left, &chosen, above)
+            self.plan_best(d, area(), &left, &chosen, above, above_regions)
         };
         let layer = &d.layer;
         let below = resting_on(&self.below_layers, layer);
@@ -3322,14 +3333,22 @@ pub fn process<R: BufRead + Send, W: Write + Send>(
     let mut held: Option<Vec<u8>> = None;
     // Each layer is rewritten once the next one is read: an end of a strand the layer above
     // rests on is not cut away.
-    let mut handle = |d: crate::geometry::Detected, above: Option<&Layer>| -> io::Result<()> {
+    let mut handle = |d: crate::geometry::Detected,
+                      above: Option<&crate::geometry::Detected>|
+     -> io::Result<()> {
         if let Some(n) = &d.layer.objects {
             pass.report.objects.clone_from(n);
         }
         if d.layer.kind == crate::layers::LayerKind::Layer {
             pass.report.layers += 1;
         }
-        let rewritten = pass.layer_under(&d, above).map_err(io::Error::other)?;
+        let rewritten = pass
+            .layer_under(
+                &d,
+                above.map(|a| &a.layer),
+                above.map_or(&[][..], |a| &a.regions[..]),
+            )
+            .map_err(io::Error::other)?;
         let report = &mut pass.report;
         let mut layer = d.layer;
         // A layer passed through is moved to the output, not copied.
@@ -3375,7 +3394,7 @@ pub fn process<R: BufRead + Send, W: Write + Send>(
                     let ready = pending.take();
                     let next = pending.insert(d);
                     match ready {
-                        Some(p) => handle(p, Some(&next.layer)),
+                        Some(p) => handle(p, Some(next)),
                         None => Ok(()),
                     }
                 }
@@ -3464,6 +3483,40 @@ pub fn process<R: BufRead + Send, W: Write + Send>(
     }
     report.slicer = reader.facts().slicer.name().to_string();
     Ok(report)
+}
+
+/// Where the layer above prints past this layer's outline near `region` and the rewrite
+/// keeps its strands as sliced: its bridges and floating regions (`above_regions`, found
+/// against this layer as sliced) within the planner's reach of the region
+/// ([`crate::poa::Others::overhung`]). Its overhangs are left out: their loops are planned on
+/// this layer's print as rewritten and grow from the perimeter wherever it lies (a hull's
+/// sharp bow by PrusaSlicer, its perimeter left out under the layer above's flare: that
+/// layer's gradual loops at the tip 0 -> 1.7 mm in air).
+fn overhung(
+    above_regions: &[crate::geometry::Region],
+    region: &crate::geometry::Region,
+    widths: &crate::poa::Widths,
+) -> MultiPolygon<f64> {
+    use geo::BoundingRect;
+    let Some(b) = region.polygon.bounding_rect() else {
+        return MultiPolygon::new(Vec::new());
+    };
+    let m = region.max_distance.min(1000.0) + widths.tolerance + 3.0 * widths.perimeter_width;
+    MultiPolygon::new(
+        above_regions
+            .iter()
+            .filter(|r| r.kind != RegionKind::Overhang)
+            .filter(|r| {
+                r.polygon.bounding_rect().is_some_and(|q| {
+                    q.min().x <= b.max().x + m
+                        && b.min().x - m <= q.max().x
+                        && q.min().y <= b.max().y + m
+                        && b.min().y - m <= q.max().y
+                })
+            })
+            .map(|r| r.polygon.clone())
+            .collect(),
+    )
 }
 
 /// What fuzzy skin does to the rewrite, when the file has it and the tolerance is automatic:

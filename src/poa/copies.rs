@@ -11,7 +11,7 @@
 //! and the regions themselves have the same box, area, reach and holes there; otherwise
 //! the region is planned on its own. Plans of representatives run on all cores.
 
-use geo::{BoundingRect, MultiPolygon, Polygon};
+use geo::{Area, BoundingRect, MultiPolygon, Polygon};
 
 use super::{plan, Others, Plan, PoaSettings, Widths};
 use crate::geometry::{near_refs, Region};
@@ -133,6 +133,34 @@ fn same_shapes(a: &[&Polygon<f64>], b: &[&Polygon<f64>], t: [f64; 2]) -> bool {
     a.len() == b.len() && a.iter().zip(b).all(|(p, q)| same_polygon(p, q, t))
 }
 
+/// Whether the layer above's regions past the outline ([`Others::overhung`]) of two regions
+/// are the same moved by `t`: as many, with the same boxes and areas, within
+/// [`OVERHUNG_SLACK`] (found like the regions themselves, they carry the same noise; the
+/// perimeter stays unmoved within a width or two of them, so a few hundredths change
+/// nothing).
+fn same_overhung(a: &MultiPolygon<f64>, b: &MultiPolygon<f64>, t: [f64; 2]) -> bool {
+    let close = |x: f64, y: f64| (x - y).abs() <= OVERHUNG_SLACK;
+    a.0.len() == b.0.len()
+        && a.0
+            .iter()
+            .zip(&b.0)
+            .all(|(p, q)| match (p.bounding_rect(), q.bounding_rect()) {
+                (Some(pa), Some(qb)) => {
+                    close(pa.min().x + t[0], qb.min().x)
+                        && close(pa.min().y + t[1], qb.min().y)
+                        && close(pa.max().x + t[0], qb.max().x)
+                        && close(pa.max().y + t[1], qb.max().y)
+                        && (p.unsigned_area() - q.unsigned_area()).abs()
+                            <= OVERHUNG_SLACK * (1.0 + p.unsigned_area().sqrt())
+                }
+                (None, None) => true,
+                _ => false,
+            })
+}
+
+/// How far apart (mm) the edges of two copies' [`Others::overhung`] regions may lie.
+const OVERHUNG_SLACK: f64 = 0.02;
+
 /// The polygons of `m`, borrowed.
 fn refs(m: &MultiPolygon<f64>) -> Vec<&Polygon<f64>> {
     m.0.iter().collect()
@@ -189,7 +217,8 @@ fn translation(a: &Surroundings<'_>, b: &Surroundings<'_>) -> Option<[f64; 2]> {
         && plain(b.others)
         && same_region(a.region, b.region, t)
         && windows
-        && same_shapes(&a.keep_out, &b.keep_out, t))
+        && same_shapes(&a.keep_out, &b.keep_out, t)
+        && same_overhung(&a.others.overhung, &b.others.overhung, t))
     .then_some(t)
 }
 

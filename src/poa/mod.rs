@@ -188,6 +188,11 @@ pub struct Others {
     /// walls round a slot in an overhang, which Cura prints apart when the outer wall goes
     /// first, were left floating and the layer above hung over the slot).
     pub absorb: MultiPolygon<f64>,
+    /// Where the layer above prints past this layer's outline near the region and is kept
+    /// as sliced (its bridges over a gap this layer leaves, its floating parts): the outline
+    /// there is not the part's surface but what the layer above was sliced to stand on, so
+    /// the perimeter under it stays where the slicer put it (not pulled in by the inset).
+    pub overhung: MultiPolygon<f64>,
 }
 
 impl Default for Others {
@@ -195,6 +200,7 @@ impl Default for Others {
         Others {
             keep_out: MultiPolygon::new(Vec::new()),
             absorb: MultiPolygon::new(Vec::new()),
+            overhung: MultiPolygon::new(Vec::new()),
         }
     }
 }
@@ -354,6 +360,15 @@ pub(super) fn plan_in(
         let plain = offset(&offset(&area_loc, -(we / 2.0 + round)), round);
         let by_loops = offset(&inner, contour_at + w);
         perimeter_area = union(&perimeter_area, &difference(&plain, &by_loops));
+        // Nor where the layer above prints past the outline: pulled in there, the perimeter
+        // only widened the gap the layer above bridges (an arch's crown by Cura: 70.8 ->
+        // 74.9 mm bridged on the layer above, 0.1 mm more on each of its strands).
+        if !others.overhung.0.is_empty() {
+            // The layer above's region lies the tolerance or more past the outline, the
+            // perimeter's centre half a width (and the inset) inside it.
+            let beyond = offset(&others.overhung, widths.tolerance + 1.5 * we + inset);
+            perimeter_area = union(&perimeter_area, &intersection(&plain, &beyond));
+        }
     }
     let perimeter = clip_lines(&rings(&perimeter_area), &zone, true);
     if thin {
@@ -1682,6 +1697,77 @@ mod tests {
             mp(vec![rect(0.0, 0.0, 16.0, 10.0)]),
             default_overlap(),
         );
+    }
+
+    #[test]
+    fn the_perimeter_stays_out_under_the_layer_above_past_the_outline() {
+        // A 6 mm cantilever: the layer above goes on past its tip (X 16) but not past its
+        // sides. The perimeter is pulled in by the inset along the sides and stays where the
+        // slicer put it (half a width inside) along the tip.
+        let below = mp(vec![rect(0.0, 0.0, 10.0, 10.0)]);
+        let area = mp(vec![rect(0.0, 0.0, 16.0, 10.0)]);
+        let settings = PoaSettings::default();
+        let widths = Widths {
+            loop_width: W,
+            perimeter_width: W,
+            tolerance: W / 2.0,
+        };
+        let poly = difference(&area, &below).0[0].clone();
+        let plan_with = |others: &Others| {
+            plan(
+                &region(poly.clone(), &below),
+                &below,
+                &area,
+                others,
+                widths,
+                &settings,
+                [0.0, 0.0],
+            )
+        };
+        // The perimeter's points near the line x = 16 (tip) and y = 10 (side), as distances
+        // inside the outline.
+        let inside_at = |p: &Plan, tip: bool| -> Vec<f64> {
+            p.strands
+                .iter()
+                .filter(|s| s.kind == StrandKind::Perimeter)
+                .flat_map(|s| samples(&s.points, 0.1))
+                .filter(|q| {
+                    if tip {
+                        q[1] > 3.0 && q[1] < 7.0
+                    } else {
+                        q[0] > 12.0 && q[0] < 14.0
+                    }
+                })
+                .map(|q| {
+                    if tip {
+                        16.0 - q[0]
+                    } else {
+                        (10.0 - q[1]).min(q[1])
+                    }
+                })
+                .filter(|d| *d < 2.0 * W)
+                .collect()
+        };
+        let plain = plan_with(&Others::default());
+        let above = Others {
+            // The layer above's bridge on past the tip, found as a region from the
+            // tolerance past it.
+            overhung: mp(vec![rect(16.0 + W / 2.0, 0.0, 20.0, 10.0)]),
+            ..Others::default()
+        };
+        let under = plan_with(&above);
+        let inset = settings.perimeter_inset;
+        for (p, tip_at) in [(&plain, W / 2.0 + inset), (&under, W / 2.0)] {
+            let tip = inside_at(p, true);
+            assert!(!tip.is_empty());
+            assert!(tip.iter().all(|d| (d - tip_at).abs() < 0.01), "tip {tip:?}");
+            let side = inside_at(p, false);
+            assert!(!side.is_empty());
+            assert!(
+                side.iter().all(|d| (d - (W / 2.0 + inset)).abs() < 0.01),
+                "side {side:?}"
+            );
+        }
     }
 
     #[test]
