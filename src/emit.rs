@@ -2407,8 +2407,8 @@ impl<'a> PoaPass<'a> {
                         o.keep_out.0.push(f.polygon.clone());
                     }
                 }
-                if let Some((_, regions)) = above {
-                    o.overhung = overhung(regions, r, &widths);
+                if let Some((above, regions)) = above {
+                    o.overhung = overhung(above, regions, area, r, &widths);
                 }
                 o
             })
@@ -3485,38 +3485,93 @@ pub fn process<R: BufRead + Send, W: Write + Send>(
     Ok(report)
 }
 
-/// Where the layer above prints past this layer's outline near `region` and the rewrite
-/// keeps its strands as sliced: its bridges and floating regions (`above_regions`, found
-/// against this layer as sliced) within the planner's reach of the region
-/// ([`crate::poa::Others::overhung`]). Its overhangs are left out: their loops are planned on
-/// this layer's print as rewritten and grow from the perimeter wherever it lies (a hull's
-/// sharp bow by PrusaSlicer, its perimeter left out under the layer above's flare: that
-/// layer's gradual loops at the tip 0 -> 1.7 mm in air).
+/// Where the layer above prints past this layer's outline (`area`) near `region` and the
+/// rewrite keeps its strands as sliced ([`crate::poa::Others::overhung`]): its bridges and
+/// floating regions (`above_regions`, found against this layer as sliced) within the
+/// planner's reach of the region, and its strands' stretches outside the outline near the
+/// region (a slope stepping out half a bead or more where no region is found: a tilted ring's
+/// crown by PrusaSlicer, whose layer above bridged 0.5 -> 5.9 mm over the perimeter pulled
+/// in), each grown by `reach`. Its overhangs are left out: their loops are planned on this
+/// layer's print as rewritten and grow from the perimeter wherever it lies (a hull's sharp
+/// bow by PrusaSlicer, its perimeter left out under the layer above's flare: that layer's
+/// gradual loops at the tip 0 -> 1.7 mm in air).
 fn overhung(
+    above: &Layer,
     above_regions: &[crate::geometry::Region],
+    area: &MultiPolygon<f64>,
     region: &crate::geometry::Region,
     widths: &crate::poa::Widths,
 ) -> MultiPolygon<f64> {
     use geo::BoundingRect;
+    let none = || MultiPolygon::new(Vec::new());
     let Some(b) = region.polygon.bounding_rect() else {
-        return MultiPolygon::new(Vec::new());
+        return none();
     };
-    let m = region.max_distance.min(1000.0) + widths.tolerance + 3.0 * widths.perimeter_width;
-    MultiPolygon::new(
-        above_regions
+    let we = widths.perimeter_width;
+    let boxed = |b: geo::Rect<f64>, m: f64| {
+        move |q: geo::Rect<f64>| {
+            q.min().x <= b.max().x + m
+                && b.min().x - m <= q.max().x
+                && q.min().y <= b.max().y + m
+                && b.min().y - m <= q.max().y
+        }
+    };
+    let far = boxed(
+        b,
+        region.max_distance.min(1000.0) + widths.tolerance + 3.0 * we,
+    );
+    let kept: Vec<geo::Polygon<f64>> = above_regions
+        .iter()
+        .filter(|r| r.kind != RegionKind::Overhang)
+        .filter(|r| r.polygon.bounding_rect().is_some_and(&far))
+        .map(|r| r.polygon.clone())
+        .collect();
+    // The region's perimeter lies within the tolerance and a few widths of its box.
+    let m = widths.tolerance + 3.0 * we;
+    let near_box = boxed(b, m);
+    let window = geo::Rect::new(
+        (b.min().x - m, b.min().y - m),
+        (b.max().x + m, b.max().y + m),
+    );
+    let outline = RingIndex::new(&crate::geometry::near(area, &window, 0.0));
+    let mut pokes: Vec<crate::geometry::Polyline> = Vec::new();
+    for p in above.paths.iter().filter(|p| !p.role.is_support()) {
+        if p.points.len() < 2 || !crate::geometry::points_box(&p.points).is_some_and(&near_box) {
+            continue;
+        }
+        // The stretches between the ones inside, longer than a tenth of a width (a strand
+        // touching the outline is not past it).
+        let inside = outline.inside_intervals(&p.points);
+        let total = crate::geometry::polyline_length(&p.points);
+        let mut from = 0.0;
+        for (a, z) in inside
             .iter()
-            .filter(|r| r.kind != RegionKind::Overhang)
-            .filter(|r| {
-                r.polygon.bounding_rect().is_some_and(|q| {
-                    q.min().x <= b.max().x + m
-                        && b.min().x - m <= q.max().x
-                        && q.min().y <= b.max().y + m
-                        && b.min().y - m <= q.max().y
-                })
-            })
-            .map(|r| r.polygon.clone())
-            .collect(),
-    )
+            .copied()
+            .chain(std::iter::once((total, total)))
+        {
+            if a - from > 0.1 * we {
+                pokes.push(sub_polyline(&p.points, from, a));
+            }
+            from = z;
+        }
+    }
+    let own: Vec<geo::Polygon<f64>> = above_regions
+        .iter()
+        .filter(|r| r.kind == RegionKind::Overhang && r.area >= SMALL_REGION)
+        .filter(|r| r.polygon.bounding_rect().is_some_and(&far))
+        .map(|r| r.polygon.clone())
+        .collect();
+    if !own.is_empty() && !pokes.is_empty() {
+        let own = crate::geometry::offset(&MultiPolygon::new(own), we);
+        pokes = crate::geometry::clip_lines(&pokes, &own, false);
+    }
+    let mut out = MultiPolygon::new(kept);
+    if !pokes.is_empty() {
+        let poked =
+            crate::geometry::area::Strands::of_lines(pokes.iter().map(|l| (&l[..], we))).buffer();
+        out = crate::geometry::union(&out, &poked);
+    }
+    out
 }
 
 /// What fuzzy skin does to the rewrite, when the file has it and the tolerance is automatic:

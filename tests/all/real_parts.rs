@@ -1884,10 +1884,12 @@ fn a_hollow_torus_keeps_its_perimeters() {
 /// layer above bridges. Poa's perimeter along that gap stays where the slicer put it (the
 /// layer above was sliced to stand on it); pulled in by the inset it widened the gap by
 /// 0.1 mm under each bridging strand (Cura, Ender 3 at 0.28 mm: 70.8 -> 74.9 mm bridged on
-/// the layer above). Every layer right above a rewritten one bridges and hangs no more than
-/// as sliced, within half a millimetre.
+/// the layer above). A tilted ring's crown by PrusaSlicer: the layer above steps out half a
+/// bead past the rewritten layer's outline with no region of its own, and bridged 0.5 -> 5.9
+/// mm over the perimeter pulled in. Every layer right above a rewritten one bridges and hangs
+/// no more than as sliced, within half a millimetre.
 #[test]
-fn the_layer_over_a_tunnels_crown_bridges_no_more_than_as_sliced() {
+fn the_layer_over_a_rewrite_bridges_no_more_than_as_sliced() {
     let ender = ["layer_height=0.28", "infill_pattern=grid"];
     let bb = ["bridge_settings_enabled=true", "layer_height=0.12"];
     let mut slices: Vec<(String, Vec<u8>)> = Vec::new();
@@ -1896,11 +1898,13 @@ fn the_layer_over_a_tunnels_crown_bridges_no_more_than_as_sliced() {
         ("creality_ender3", &bb[..]),
     ] {
         if let Some(d) = slice_cura(&part("tunnel"), machine, settings) {
-            slices.push((format!("Cura {machine} {settings:?}"), d));
+            slices.push((format!("tunnel by Cura {machine} {settings:?}"), d));
         }
     }
-    if let Some(d) = slice("tunnel", &[]) {
-        slices.push(("PrusaSlicer".into(), d));
+    for name in ["tunnel", "tilted_ring"] {
+        if let Some(d) = slice(name, &[]) {
+            slices.push((format!("{name} by PrusaSlicer"), d));
+        }
     }
     for (what, d) in &slices {
         let (new, rep) = rewrite(d, BridgeMode::Auto);
@@ -1908,7 +1912,7 @@ fn the_layer_over_a_tunnels_crown_bridges_no_more_than_as_sliced() {
             rep.rewrites.iter().map(|r| r.layer).collect();
         assert!(!rewritten.is_empty(), "{what}: nothing rewritten");
         let (before, after) = before_after(what, d, &new);
-        cut_to(what, &before, &after, 0.05);
+        cut_to(what, &before, &after, 0.2);
         no_layer_worse(what, &before, &after);
         for (b, a) in before.layers.iter().zip(&after.layers) {
             if rewritten.contains(&b.layer) || !rewritten.contains(&(b.layer - 1)) {
