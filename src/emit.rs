@@ -2120,7 +2120,21 @@ impl<'a> PoaPass<'a> {
         let layer = &d.layer;
         self.plain_written = None;
         let above = above.filter(|a| a.index == layer.index + 1 && a.on_previous());
-        let next = above.map(|a| (a, above_regions));
+        // Where the layer above stands past each region's outline: made once for the three
+        // plans below.
+        let overhung: Option<Vec<MultiPolygon<f64>>> = above.map(|a| {
+            use rayon::prelude::*;
+            let widths = crate::poa::Widths {
+                loop_width: self.width_on(layer),
+                perimeter_width: self.width_on(layer),
+                tolerance: self.opts.detect.tolerance_at(layer.height),
+            };
+            chosen
+                .par_iter()
+                .map(|(_, r)| overhung(a, above_regions, area, r, &widths))
+                .collect()
+        });
+        let next = overhung.as_deref();
         let plain = |me: &mut Self| {
             me.plan(d, area, left, chosen, None, next)
                 .unwrap_or_default()
@@ -2214,7 +2228,7 @@ impl<'a> PoaPass<'a> {
         left: &Chosen<'_>,
         chosen: &Chosen<'_>,
         strips: Option<(&Layer, bool)>,
-        above: Option<(&Layer, &[crate::geometry::Region])>,
+        overhung: Option<&[MultiPolygon<f64>]>,
     ) -> Option<Vec<RegionRewrite>> {
         let layer = &d.layer;
         let start = layer
@@ -2340,7 +2354,8 @@ impl<'a> PoaPass<'a> {
         let mut absorbed: Vec<(usize, usize)> = Vec::new();
         let others: Vec<crate::poa::Others> = chosen
             .iter()
-            .map(|(id, r)| {
+            .enumerate()
+            .map(|(k, (id, r))| {
                 use geo::Intersects;
                 let grow = |p: &geo::Polygon<f64>| {
                     crate::geometry::offset(&MultiPolygon::new(vec![p.clone()]), widths.loop_width)
@@ -2407,8 +2422,8 @@ impl<'a> PoaPass<'a> {
                         o.keep_out.0.push(f.polygon.clone());
                     }
                 }
-                if let Some((above, regions)) = above {
-                    o.overhung = overhung(above, regions, area, r, &widths);
+                if let Some(v) = overhung.and_then(|v| v.get(k)) {
+                    o.overhung = v.clone();
                 }
                 o
             })
