@@ -3550,7 +3550,12 @@ fn overhung(
     );
     let outline = RingIndex::new(&crate::geometry::near(area, &window, 0.0));
     let mut pokes: Vec<crate::geometry::Polyline> = Vec::new();
-    for p in above.paths.iter().filter(|p| !p.role.is_support()) {
+    // (No outline near by: nothing to stand past; every strand would read as outside it.)
+    for p in above
+        .paths
+        .iter()
+        .filter(|p| !p.role.is_support() && !outline.is_empty())
+    {
         if p.points.len() < 2 || !crate::geometry::points_box(&p.points).is_some_and(&near_box) {
             continue;
         }
