@@ -553,15 +553,24 @@ fn segments_of<'a>(
 
 /// The layers among `recent` (earlier layers, in any order) that `layer` rests on
 /// ([`Layer::rests_on`]), then those whose support material holds it across the contact gap
-/// ([`Layer::contact`]; only their support strands count, see [`check_layer`]).
+/// ([`Layer::contact`]; only their support strands count, see [`check_layer`]), then those
+/// its own support material stands on across the bottom contact gap ([`Layer::gap_below`];
+/// they hold its support strands only).
 pub fn resting_on<'a>(
     layer: &Layer,
     recent: impl Iterator<Item = &'a Layer> + Clone,
 ) -> Vec<&'a Layer> {
+    let mut seen: Vec<usize> = Vec::new();
     layer
         .rests_on
         .iter()
         .chain(&layer.contact)
+        .chain(&layer.gap_below)
+        .filter(|&&i| {
+            let new = !seen.contains(&i);
+            seen.push(i);
+            new
+        })
         .filter_map(|&i| {
             recent
                 .clone()
@@ -862,14 +871,28 @@ fn check_within(
         None => bounds(below.iter().copied().chain(std::iter::once(layer))),
     };
     let mut grid = Grid::new(1.0, min, max);
+    // What the layer's support material stands on across its bottom contact gap.
+    let mut gap = Grid::new(1.0, min, max);
+    let mut gapped = false;
     let on_bed = layer.on_bed();
+    let in_window =
+        |s: &Seg| window.is_none() || boxes_meet(points_bounds(&[s.a, s.b]), (min, max), 0.0);
     for b in below {
-        // A layer under the contact gap holds this one by its support material only.
-        let support_only = layer.contact.contains(&b.index) && !layer.rests_on.contains(&b.index);
-        for s in segments_of(b, filament_area, support_only, below_near) {
-            if window.is_none() || boxes_meet(points_bounds(&[s.a, s.b]), (min, max), 0.0) {
-                grid.insert(s);
+        let rests = layer.rests_on.contains(&b.index);
+        let contact = layer.contact.contains(&b.index);
+        if !rests && layer.gap_below.contains(&b.index) {
+            for s in segments_of(b, filament_area, false, below_near).filter(in_window) {
+                gap.insert(s);
+                gapped = true;
             }
+            if !contact {
+                continue;
+            }
+        }
+        // A layer under the contact gap holds this one by its support material only.
+        let support_only = contact && !rests;
+        for s in segments_of(b, filament_area, support_only, below_near).filter(in_window) {
+            grid.insert(s);
         }
     }
     let tall_at = (!deeper.is_empty())
@@ -887,6 +910,8 @@ fn check_within(
     let mut volume = 0.0;
     for path in layer.paths.iter().filter(|p| judged(p)) {
         let infill = path.role == Role::Infill;
+        let support = gapped && path.role.is_support();
+        let mut last_gap = None;
         // A path is sampled every `step` up to [`MAX_PATH_SAMPLES`] samples, more coarsely
         // beyond: its samples are held until its runs are classified, and a path kilometres
         // long (moves gone relative by a stray G91) took gigabytes.
@@ -973,7 +998,8 @@ fn check_within(
                         || own.iter().any(|(_, o)| turned_back(o, a, b, p, reach))
                         || (infill
                             && tall_at.is_some_and(|t| w > t)
-                            && deep.near(p, reach, &mut last_deep));
+                            && deep.near(p, reach, &mut last_deep))
+                        || (support && gap.near(p, reach, &mut last_gap));
                     samples.push((
                         s_here,
                         Sample {

@@ -2307,6 +2307,7 @@ impl<'a> PoaPass<'a> {
                             objects: None,
                             rests_on: r.rests_on.clone(),
                             contact: r.contact.clone(),
+                            gap_below: r.gap_below.clone(),
                             helical: r.helical,
                             ..*r
                         };
@@ -3300,6 +3301,7 @@ fn reread(layer: &Layer, bytes: &[u8], config: &SlicerConfig) -> Option<Layer> {
         rests_on: layer.rests_on.clone(),
         walls_on_previous: layer.walls_on_previous,
         contact: layer.contact.clone(),
+        gap_below: layer.gap_below.clone(),
         helical: layer.helical,
         spread: layer.spread,
         paths,

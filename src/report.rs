@@ -641,7 +641,7 @@ pub fn check<R: BufRead + Send>(
     // Layers are checked in parallel batches; each needs the layers it rests on, so the last
     // layers of a batch are carried into the next: the last one, or as many as the farthest
     // any layer so far has rested back (objects of different layer heights interleave, or
-    // support holds a layer across its contact gap).
+    // support holds a layer across its contact gap, or stands on one across its own).
     const BATCH: usize = 4;
     let checks = geometry::read_ahead(reader.by_ref(), |layers| {
         let mut checks: Vec<LayerCheck> = Vec::new();
@@ -658,8 +658,8 @@ pub fn check<R: BufRead + Send>(
                 continue;
             }
             for l in &batch[carried..] {
-                let back =
-                    (l.rests_on.iter().chain(&l.contact)).map(|&i| l.index.saturating_sub(i));
+                let back = (l.rests_on.iter().chain(&l.contact).chain(&l.gap_below))
+                    .map(|&i| l.index.saturating_sub(i));
                 // Three at least: the layers under the one below hold taller infill.
                 span = back
                     .fold(span.max(3), usize::max)

@@ -546,6 +546,7 @@ fn with_support(layer: &Layer, opts: &AreaOptions) -> MultiPolygon<f64> {
         objects: None,
         rests_on: Vec::new(),
         contact: Vec::new(),
+        gap_below: Vec::new(),
         helical: false,
         ..*layer
     };

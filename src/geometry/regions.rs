@@ -770,6 +770,7 @@ mod tests {
             rests_on: vec![4],
             walls_on_previous: true,
             contact: Vec::new(),
+            gap_below: Vec::new(),
             helical: false,
             spread: 0.0,
             paths: Vec::new(),

@@ -129,6 +129,12 @@ pub struct Layer {
     /// slicer's support contact gap (see [`contact_under`]): only their support strands count
     /// under this layer. Empty without support material.
     pub contact: Vec<usize>,
+    /// Earlier layers of any material whose top lies within [`CONTACT_GAP`] under this
+    /// layer's bottom, below those it rests on (see [`gap_under`]): what the layer's support
+    /// material stands on across the slicer's bottom contact gap (PrusaSlicer's
+    /// `support_material_bottom_contact_distance`, Cura's `support_bottom_distance`). Only the
+    /// layer's support strands stand on them. Empty on a layer without support material.
+    pub gap_below: Vec<usize>,
     /// Z rises while the layer extrudes (a spiral vase's turn, a non-planar print): no layer
     /// below it at one height, nothing poa rewrites.
     pub helical: bool,
@@ -261,6 +267,43 @@ pub fn contact_under(
         if s.is_some() {
             under.push(i);
         }
+    }
+    under
+}
+
+/// Most layers [`gap_under`] gives: the nearest ones hold the support (the others lie
+/// under them).
+const GAP_LAYERS: usize = 2;
+
+/// The layers under a layer with top `z` and bead height `height` whose material the layer's
+/// support stands on across the slicer's bottom contact gap: walking back through `recent`
+/// (as [`contact_under`]), past those it rests on (`rests`), the layers whose top lies below
+/// the layer's bottom by at most [`CONTACT_GAP`], nearest first, [`GAP_LAYERS`] at most. The
+/// walk ends at a layer more than a layer height above the layer's top (sequential printing
+/// coming back down) or deeper than the gap.
+pub fn gap_under(
+    recent: &VecDeque<(usize, f64)>,
+    rests: &[usize],
+    z: f64,
+    height: f64,
+) -> Vec<usize> {
+    let eps = (0.25 * height).clamp(0.002, 0.02);
+    let bottom = z - height;
+    let mut under = Vec::new();
+    for &(i, top) in recent.iter().rev() {
+        if rests.contains(&i) {
+            continue;
+        }
+        if top > z + height {
+            break;
+        }
+        if top > z - eps {
+            continue;
+        }
+        if top < bottom - CONTACT_GAP - eps || under.len() == GAP_LAYERS {
+            break;
+        }
+        under.push(i);
     }
     under
 }
@@ -1225,6 +1268,7 @@ impl State {
         }
         let mut rests = Vec::new();
         let mut contact = Vec::new();
+        let mut gap_below = Vec::new();
         let mut walls_on_previous = false;
         if is_layer {
             rests = rests_on(&self.recent, z, reach);
@@ -1235,6 +1279,9 @@ impl State {
                     s.map(|s| s.1)
                 };
                 contact = contact_under(&self.recent, support, &rests, z, reach);
+            }
+            if paths.iter().any(|p| p.role.is_support()) {
+                gap_below = gap_under(&self.recent, &rests, z, reach);
             }
             if self.recent.len() == RECENT_LAYERS {
                 if let Some((gone, _)) = self.recent.pop_front() {
@@ -1261,6 +1308,7 @@ impl State {
             rests_on: rests,
             walls_on_previous,
             contact,
+            gap_below,
             helical: b.helical,
             spread: 0.0,
             paths,
@@ -1351,6 +1399,7 @@ pub(crate) mod testing {
             rests_on: index.checked_sub(1).into_iter().collect(),
             walls_on_previous: index >= 1,
             contact: Vec::new(),
+            gap_below: Vec::new(),
             helical: false,
             spread: 0.0,
             paths,
@@ -1575,6 +1624,24 @@ M486 S3\nM486 Abox\nG1 X20 E1\nM486 S-1\n";
         // A gap under the layer: the layer before, as for any file.
         assert_eq!(rests_on(&recent(&[(0, 0.2)]), 1.0, 0.2), vec![0]);
         assert!(rests_on(&recent(&[]), 0.2, 0.2).is_empty());
+    }
+
+    #[test]
+    fn support_stands_on_the_part_across_its_bottom_gap() {
+        // Part layers up to Z 2.0 (0.2 mm), a layer of walls only at 2.2 (rests on 2.0), then
+        // support from Z 2.4 standing on the part's top at 2.0 across one empty layer.
+        let r: VecDeque<(usize, f64)> = (0..10).map(|i| (i, 0.2 * (i + 1) as f64)).collect();
+        // Layer 11 (Z 2.4) rests on layer 10 (Z 2.2, not in `recent` here): the layers
+        // under it within the gap, nearest first, two at most.
+        assert_eq!(gap_under(&r, &[], 2.4, 0.2), vec![9, 8]);
+        // Past the gap: nothing.
+        let far: VecDeque<(usize, f64)> = (0..5).map(|i| (i, 0.2 * (i + 1) as f64)).collect();
+        assert!(gap_under(&far, &[], 2.4, 0.2).is_empty());
+        // The layer it rests on is not one of them; a layer above it (sequential printing
+        // coming back down) ends the walk.
+        assert_eq!(gap_under(&r, &[9], 2.2, 0.2), vec![8, 7]);
+        let seq: VecDeque<(usize, f64)> = VecDeque::from(vec![(0, 1.8), (1, 5.0)]);
+        assert!(gap_under(&seq, &[], 2.2, 0.2).is_empty());
     }
 
     #[test]

@@ -1927,3 +1927,47 @@ fn the_layer_over_a_rewrite_bridges_no_more_than_as_sliced() {
         }
     }
 }
+
+/// Support material that starts on the part (inside a box, under its dome) is printed a
+/// contact gap above it so that it comes off: PrusaSlicer's bottom contact distance (one
+/// layer), Cura's `support_bottom_distance`. Its first layer stands on the part across that
+/// gap, as the part's first layer over support stands on the support across the top gap: the
+/// check read the whole first support layer in the box as in air (501 mm of 548 mm for the
+/// print, PrusaSlicer).
+#[test]
+fn support_on_the_part_stands_across_its_bottom_gap() {
+    let args = [
+        "--support-material",
+        "--support-material-auto",
+        "--fill-pattern",
+        "honeycomb",
+    ];
+    let mut slices: Vec<(&str, Vec<u8>)> = Vec::new();
+    if let Some(d) = slice("dome_box", &args) {
+        slices.push(("PrusaSlicer", d));
+    }
+    if let Some(d) = slice_cura(
+        &part("dome_box"),
+        "creality_cr10",
+        &["support_enable=true", "layer_height=0.1"],
+    ) {
+        slices.push(("Cura", d));
+    }
+    for (what, d) in &slices {
+        let c = check(d);
+        let support_layers = all_layers(d)
+            .iter()
+            .filter(|l| l.paths.iter().any(|p| p.role.is_support()))
+            .count();
+        assert!(
+            support_layers > 10,
+            "{what}: {support_layers} layers of support"
+        );
+        let worst = c.layers.iter().map(|l| l.in_air_mm).fold(0.0, f64::max);
+        assert!(
+            worst < 60.0,
+            "{what}: a layer keeps {worst:.1} mm in air ({:.1} in all)",
+            c.in_air_mm
+        );
+    }
+}
