@@ -243,10 +243,37 @@ pub fn contact_under(
     z: f64,
     height: f64,
 ) -> Vec<usize> {
-    let eps = (0.25 * height).clamp(0.002, 0.02);
-    let bottom = z - height;
     let mut through = !rests.is_empty() && rests.iter().all(|&i| support(i) == Some(true));
     let mut under = Vec::new();
+    walk_under(recent, rests, z, height, |i, deep| {
+        let s = support(i);
+        through &= s == Some(true);
+        if !through && deep {
+            return false;
+        }
+        if s.is_some() {
+            under.push(i);
+        }
+        true
+    });
+    under
+}
+
+/// Walks back through `recent` from under a layer with top `z` and bead height `height`,
+/// past the layers it rests on (`rests`) and those at its own height (another object's part
+/// of the same layer, or Cura's first layer over a raft, printed higher than the layer after
+/// it), calling `visit(layer, deeper than the contact gap)` until it returns false. The walk
+/// ends at a layer more than a layer height above the layer's top (sequential printing
+/// coming back down).
+fn walk_under(
+    recent: &VecDeque<(usize, f64)>,
+    rests: &[usize],
+    z: f64,
+    height: f64,
+    mut visit: impl FnMut(usize, bool) -> bool,
+) {
+    let eps = (0.25 * height).clamp(0.002, 0.02);
+    let bottom = z - height;
     for &(i, top) in recent.iter().rev() {
         if rests.contains(&i) {
             continue;
@@ -255,20 +282,12 @@ pub fn contact_under(
             break;
         }
         if top > z - eps {
-            // Another object's part of the same layer, or Cura's first layer over a raft,
-            // printed higher than the layer after it.
             continue;
         }
-        let s = support(i);
-        through &= s == Some(true);
-        if !through && top < bottom - CONTACT_GAP - eps {
+        if !visit(i, top < bottom - CONTACT_GAP - eps) {
             break;
         }
-        if s.is_some() {
-            under.push(i);
-        }
     }
-    under
 }
 
 /// Most layers [`gap_under`] gives: the nearest ones hold the support (the others lie
@@ -278,33 +297,21 @@ const GAP_LAYERS: usize = 2;
 /// The layers under a layer with top `z` and bead height `height` whose material the layer's
 /// support stands on across the slicer's bottom contact gap: walking back through `recent`
 /// (as [`contact_under`]), past those it rests on (`rests`), the layers whose top lies below
-/// the layer's bottom by at most [`CONTACT_GAP`], nearest first, [`GAP_LAYERS`] at most. The
-/// walk ends at a layer more than a layer height above the layer's top (sequential printing
-/// coming back down) or deeper than the gap.
+/// the layer's bottom by at most [`CONTACT_GAP`], nearest first, [`GAP_LAYERS`] at most.
 pub fn gap_under(
     recent: &VecDeque<(usize, f64)>,
     rests: &[usize],
     z: f64,
     height: f64,
 ) -> Vec<usize> {
-    let eps = (0.25 * height).clamp(0.002, 0.02);
-    let bottom = z - height;
     let mut under = Vec::new();
-    for &(i, top) in recent.iter().rev() {
-        if rests.contains(&i) {
-            continue;
-        }
-        if top > z + height {
-            break;
-        }
-        if top > z - eps {
-            continue;
-        }
-        if top < bottom - CONTACT_GAP - eps || under.len() == GAP_LAYERS {
-            break;
+    walk_under(recent, rests, z, height, |i, deep| {
+        if deep || under.len() == GAP_LAYERS {
+            return false;
         }
         under.push(i);
-    }
+        true
+    });
     under
 }
 
