@@ -2129,9 +2129,12 @@ impl<'a> PoaPass<'a> {
                 perimeter_width: self.width_on(layer),
                 tolerance: self.opts.detect.tolerance_at(layer.height),
             };
+            // One index of the layer's outline for all its regions (a plate of many small
+            // regions beside one big body would index that body once per region).
+            let outline = RingIndex::new(area);
             chosen
                 .par_iter()
-                .map(|(_, r)| overhung(a, above_regions, area, r, &widths))
+                .map(|(_, r)| overhung(a, above_regions, &outline, r, &widths))
                 .collect()
         });
         let next = overhung.as_deref();
@@ -3502,7 +3505,7 @@ pub fn process<R: BufRead + Send, W: Write + Send>(
     Ok(report)
 }
 
-/// Where the layer above prints past this layer's outline (`area`) near `region` and the
+/// Where the layer above prints past this layer's outline (`outline`) near `region` and the
 /// rewrite keeps its strands as sliced ([`crate::poa::Others::overhung`]): its bridges and
 /// floating regions (`above_regions`, found against this layer as sliced) within the
 /// planner's reach of the region, and its strands' stretches outside the outline near the
@@ -3515,7 +3518,7 @@ pub fn process<R: BufRead + Send, W: Write + Send>(
 fn overhung(
     above: &Layer,
     above_regions: &[crate::geometry::Region],
-    area: &MultiPolygon<f64>,
+    outline: &RingIndex,
     region: &crate::geometry::Region,
     widths: &crate::poa::Widths,
 ) -> MultiPolygon<f64> {
@@ -3546,11 +3549,6 @@ fn overhung(
     // The region's perimeter lies within the tolerance and a few widths of its box.
     let m = widths.tolerance + 3.0 * we;
     let near_box = boxed(b, m);
-    let window = geo::Rect::new(
-        (b.min().x - m, b.min().y - m),
-        (b.max().x + m, b.max().y + m),
-    );
-    let outline = RingIndex::new(&crate::geometry::near(area, &window, 0.0));
     let mut pokes: Vec<crate::geometry::Polyline> = Vec::new();
     // (No outline near by: nothing to stand past; every strand would read as outside it.)
     for p in above
