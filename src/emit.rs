@@ -927,6 +927,10 @@ fn dangling_tails(
     tails
 }
 
+/// Most points of the layer above's strands past a region's outline that [`overhung`]
+/// buffers: a slope stepping out leaves a few strands' worth near a region.
+const MAX_POKE_POINTS: usize = 20_000;
+
 /// The part of `pts` between cumulative lengths `a` and `b`.
 fn sub_polyline(pts: &[[f64; 2]], a: f64, b: f64) -> Vec<[f64; 2]> {
     let mut out = vec![point_at(pts, a)];
@@ -3550,6 +3554,7 @@ fn overhung(
     let m = widths.tolerance + 3.0 * we;
     let near_box = boxed(b, m);
     let mut pokes: Vec<crate::geometry::Polyline> = Vec::new();
+    let mut points = 0usize;
     // (No outline near by: nothing to stand past; every strand would read as outside it.)
     for p in above
         .paths
@@ -3570,9 +3575,18 @@ fn overhung(
             .chain(std::iter::once((total, total)))
         {
             if a - from > 0.1 * we {
-                pokes.push(sub_polyline(&p.points, from, a));
+                let piece = sub_polyline(&p.points, from, a);
+                points += piece.len();
+                pokes.push(piece);
             }
             from = z;
+        }
+        if points > MAX_POKE_POINTS {
+            // A layer above that stands far past this one (a file moved off by a stray
+            // G91): no slope stepping out, and buffering it all would cost what its region
+            // search did. The perimeter keeps its inset there.
+            pokes.clear();
+            break;
         }
     }
     let own: Vec<geo::Polygon<f64>> = above_regions
