@@ -367,7 +367,10 @@ pub(super) fn plan_in(
             // The layer above's region lies the tolerance or more past the outline, the
             // perimeter's centre half a width (and the inset) inside it.
             let beyond = offset(&others.overhung, widths.tolerance + 1.5 * we + inset);
-            perimeter_area = union(&perimeter_area, &intersection(&plain, &beyond));
+            // Its corners sharp there too, as the slicer drew them: a star's tip rounded by
+            // half a width lost 0.5 mm, which the layer above's tip then bridged.
+            let sharp = offset(&area_loc, -(we / 2.0));
+            perimeter_area = union(&perimeter_area, &intersection(&sharp, &beyond));
         }
     }
     let perimeter = clip_lines(&rings(&perimeter_area), &zone, true);
