@@ -3532,18 +3532,9 @@ fn overhung(
         return none();
     };
     let we = widths.perimeter_width;
-    let boxed = |b: geo::Rect<f64>, m: f64| {
-        move |q: geo::Rect<f64>| {
-            q.min().x <= b.max().x + m
-                && b.min().x - m <= q.max().x
-                && q.min().y <= b.max().y + m
-                && b.min().y - m <= q.max().y
-        }
-    };
-    let far = boxed(
-        b,
-        region.max_distance.min(1000.0) + widths.tolerance + 3.0 * we,
-    );
+    let boxed =
+        |m: f64| move |q: geo::Rect<f64>| crate::geometry::boxes_within(Some(&b), Some(&q), m);
+    let far = boxed(region.max_distance.min(1000.0) + widths.tolerance + 3.0 * we);
     let kept: Vec<geo::Polygon<f64>> = above_regions
         .iter()
         .filter(|r| r.kind != RegionKind::Overhang)
@@ -3552,7 +3543,7 @@ fn overhung(
         .collect();
     // The region's perimeter lies within the tolerance and a few widths of its box.
     let m = widths.tolerance + 3.0 * we;
-    let near_box = boxed(b, m);
+    let near_box = boxed(m);
     let mut pokes: Vec<crate::geometry::Polyline> = Vec::new();
     let mut points = 0usize;
     // (No outline near by: nothing to stand past; every strand would read as outside it.)
