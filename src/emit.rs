@@ -2927,7 +2927,7 @@ fn anchor_strips(
     w: f64,
     filament_area: f64,
 ) -> Vec<Option<Strip>> {
-    use geo::{Area, BoundingRect, Intersects};
+    use geo::{Area, BoundingRect};
     use rayon::prelude::*;
     if chosen.len() > 4 * MAX_STRIP_REGIONS || !below.paths.iter().any(|p| p.role == Role::Infill) {
         return vec![None; chosen.len()];
@@ -2949,17 +2949,34 @@ fn anchor_strips(
             }
             let rb = r.polygon.bounding_rect()?;
             let region = RingIndex::new(&MultiPolygon::new(vec![r.polygon.clone()]));
-            // The region's bridge strands that run out of it.
+            // The region's outline grown by a few widths: a bridge strand of the slicer's
+            // wholly in there runs beside the region's edge (PrusaSlicer lays the first of
+            // a roof's strands along a one-perimeter wall, over the gap between its two
+            // beads: 109 mm in air on a box's roof).
+            let beside = RingIndex::new(&crate::geometry::offset(
+                &MultiPolygon::new(vec![r.polygon.clone()]),
+                STRIP_BESIDE * w,
+            ));
+            // The region's bridge strands that run out of it, and those beside it.
             let crossing: Vec<&crate::layers::Path> = layer
                 .paths
                 .iter()
                 .filter(|p| p.role == Role::BridgeInfill)
                 .filter(|p| {
-                    crate::geometry::points_box(&p.points).is_some_and(|b| b.intersects(&rb))
+                    let b = crate::geometry::points_box(&p.points);
+                    crate::geometry::boxes_within(b.as_ref(), Some(&rb), STRIP_BESIDE * w)
                 })
                 .filter(|p| {
                     let inside = |q: &[f64; 2]| region.contains(*q);
-                    p.points.iter().any(inside) && !p.points.iter().all(inside)
+                    let all_in = p.points.iter().all(inside);
+                    !all_in
+                        && (p.points.iter().any(inside)
+                            || p.points.windows(2).any(|s| {
+                                beside.contains([
+                                    (s[0][0] + s[1][0]) / 2.0,
+                                    (s[0][1] + s[1][1]) / 2.0,
+                                ]) || beside.contains(s[0])
+                            }))
                 })
                 .collect();
             let bb = crate::geometry::points_box(
@@ -3126,6 +3143,10 @@ fn anchor_strips(
         })
         .collect()
 }
+
+/// How far (in loop widths) beside a region a bridge strand of the slicer's that does not
+/// enter it is taken for its anchors.
+const STRIP_BESIDE: f64 = 3.0;
 
 /// Most regions of a layer whose anchor strips are looked for.
 const MAX_STRIP_REGIONS: usize = 64;

@@ -497,6 +497,22 @@ pub(super) fn plan_in(
     // a sphere's ring next to the equator, and the perimeter hung between them.)
     let near_below = offset(below_loc, w / 8.0);
     let contour = clip_lines(&rings(&inner), &near_below, false);
+    // Contour pieces within a quarter width of the wall below rest on it as loop 1 does,
+    // and loops lean on them: they are laid first, not last (a one-perimeter box's roof by
+    // PrusaSlicer, its bridge's anchor strip over the gap inside the wall: the contour along
+    // the outer bead came last and the loop beside it hung, 31 mm on one side).
+    let (held_contour, contour) = if contour.is_empty() {
+        (Vec::new(), contour)
+    } else {
+        let by_wall = offset(below_loc, w / 4.0);
+        // (Bits shorter than a width stay with the contour.)
+        let (held, bits): (Vec<Polyline>, Vec<Polyline>) = clip_lines(&contour, &by_wall, true)
+            .into_iter()
+            .partition(|p| polyline_length(p) >= w);
+        let mut rest = clip_lines(&contour, &by_wall, false);
+        rest.extend(bits);
+        (held, rest)
+    };
 
     // Fronts grow inside the zone only (a geodesic offset): past a hole in the region they
     // wrap around it instead of jumping across, so every loop lies beside the previous one.
@@ -662,6 +678,12 @@ pub(super) fn plan_in(
         };
         shape.strands(clip_lines(&ring, &strip, true), 2.0 * w, &mut at)
     };
+    let held_by_wall = Shape {
+        kind: StrandKind::Loop,
+        loop_index: 1,
+        width: w,
+    };
+    strands.extend(held_by_wall.strands(held_contour, w, &mut at));
     strands.extend(
         order_loops(loops, step, seam_stagger(w, step), &mut at)
             .into_iter()
@@ -1662,6 +1684,67 @@ mod tests {
             }
             let share = covered as f64 / inside.max(1) as f64;
             assert!(share >= 0.98, "{name}: zone {:.1} % covered", 100.0 * share);
+        }
+    }
+
+    #[test]
+    fn a_gap_inside_a_wall_is_filled_from_both_beads_each_strand_leaning_on_what_came_before() {
+        // A one-perimeter wall below: an outer bead (0 to 0.45) and the inner part (from
+        // 1.55 in), a 1.1 mm gap between them; the layer prints all of it. The contour along
+        // the outer bead lies 0.095 mm off it: it rests on the bead as loop 1 would, and the
+        // loops beside it lean on it, so it is laid before them.
+        let outer = geo::Polygon::new(
+            rect(0.0, 0.0, 20.0, 20.0).exterior().clone(),
+            vec![rect(0.45, 0.45, 19.55, 19.55).exterior().clone()],
+        );
+        let below = union(&mp(vec![outer]), &mp(vec![rect(1.55, 1.55, 18.45, 18.45)]));
+        let area = mp(vec![rect(0.0, 0.0, 20.0, 20.0)]);
+        let band = difference(&area, &below);
+        let settings = PoaSettings::default();
+        let widths = Widths {
+            loop_width: W,
+            perimeter_width: W,
+            tolerance: W / 2.0,
+        };
+        let plan = plan(
+            &region(band.0[0].clone(), &below),
+            &below,
+            &area,
+            &Others::default(),
+            widths,
+            &settings,
+            [0.0, 0.0],
+        );
+        assert!(plan.loops >= 1);
+        // The deposition check's rule: a point is held where material lies within a
+        // quarter width of it, below or laid earlier in the plan.
+        let edge = rings(&below);
+        let edge: Vec<&Polyline> = edge.iter().collect();
+        for (i, s) in plan.strands.iter().enumerate() {
+            let before: Vec<&Polyline> = plan.strands[..i].iter().map(|s| &s.points).collect();
+            for p in samples(&s.points, 0.1) {
+                let on_below = below.contains(&geo::Point::new(p[0], p[1]))
+                    || dist_to(p, &edge) <= W / 4.0 + 1e-6;
+                let on_earlier = dist_to(p, &before) <= W / 2.0 + W / 4.0 + 1e-6;
+                assert!(
+                    on_below || on_earlier,
+                    "strand {i} ({:?} {}) hangs at {p:?}",
+                    s.kind,
+                    s.loop_index
+                );
+            }
+        }
+        // And the gap is filled (where the fronts from the two beads meet, a hairline).
+        let strands: Vec<&Polyline> = plan.strands.iter().map(|s| &s.points).collect();
+        for k in 0..40 {
+            let y = 2.0 + 0.4 * k as f64;
+            for x in [0.6, 0.8, 1.0, 1.2, 1.4] {
+                let d = dist_to([x, y], &strands);
+                assert!(
+                    d <= 0.6 * W,
+                    "({x}, {y}) left empty: {d:.3} mm from a strand"
+                );
+            }
         }
     }
 

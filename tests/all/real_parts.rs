@@ -187,6 +187,23 @@ fn a_box_with_a_roof_and_a_window() {
     }
 }
 
+/// The same box by PrusaSlicer with one perimeter: its 1.5 mm wall is two beads with a gap
+/// between them, and PrusaSlicer lays the roof's first bridge strands along the wall over
+/// that gap, beside the region but not in it. They are planned with the region, and the
+/// loops there grow from both beads: the contour along the outer bead first (as sliced,
+/// 1784 mm in air on the roof's layer; 109 mm of the strands beside the region were left
+/// hanging, then 55 mm of loops beside a contour laid last).
+#[test]
+fn a_one_perimeter_box_s_roof_is_held_over_the_gap_inside_its_wall() {
+    let Some(d) = slice("box_roof_window", &["--perimeters", "1"]) else {
+        return;
+    };
+    let (what, before, after) =
+        judge_one("box_roof_window by PrusaSlicer, one perimeter".into(), &d);
+    held_up(&what, &before, &after, 20.0);
+    cut_to(&what, &before, &after, 0.01);
+}
+
 /// A table whose top reaches 6 mm past its legs: between the legs a bridge, beyond them a
 /// rim no bridge strand is anchored under. Kept as a bridge it left 2.4 m in air; now it is
 /// an overhang, grown from the legs.
