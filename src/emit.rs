@@ -3365,6 +3365,7 @@ pub fn process<R: BufRead + Send, W: Write + Send>(
         pass.report.notes.push(note);
     }
     let filament_area = pass.motion.filament_area;
+    let real_area = crate::layers::filament_area(config.filament_diameter());
     let density = config.filament_density();
     let mut reader = crate::layers::LayerReader::new(
         input,
@@ -3511,7 +3512,11 @@ pub fn process<R: BufRead + Send, W: Write + Send>(
             "no extrusion (E) read in the layers, though the slicer states {f:.0} mm of filament: the extruder may be on another axis (mach3 and machinekit write A), which poa does not read; the file is left as sliced"
         ));
     }
-    report.filament_added_cm3 = report.filament_added_mm * filament_area / 1000.0;
+    // The sums above are in E units; where E is a volume (Marlin (Volumetric), UltiGCode,
+    // `use_volumetric_e`) the report and the footer say filament, as the slicer does (a
+    // mushroom's cap by Cura's volumetric flavour reported +46 mm for +19).
+    report.filament_added_mm *= filament_area / real_area;
+    report.filament_added_cm3 = report.filament_added_mm * real_area / 1000.0;
     report.filament_added_g = report.filament_added_cm3 * density;
     if let Some(last) = held {
         if report.regions_rewritten > 0 {
@@ -3519,7 +3524,7 @@ pub fn process<R: BufRead + Send, W: Write + Send>(
                 &last,
                 report.filament_added_mm,
                 report.time_added_s,
-                filament_area,
+                real_area,
                 density,
             ))?;
         } else {

@@ -193,6 +193,28 @@ fn volumetric_loops(data: &[u8]) {
         }
     }
     assert!(loops > 20, "{loops} loops");
+    // The report counts filament, not E: the material added (a volume, as E is here) over
+    // the filament's cross-section.
+    let volume = |d: &[u8]| -> f64 {
+        all_layers(d)
+            .iter()
+            .flat_map(|l| l.paths.iter())
+            .map(|p| p.e())
+            .sum()
+    };
+    let added = volume(&out) - volume(data);
+    let area = printonair::layers::filament_area(config.filament_diameter());
+    assert!(
+        (rep.filament_added_cm3 * 1000.0 - added).abs() <= 0.01 * added.abs() + 0.1,
+        "{} cm3 added, E says {added:.1} mm3",
+        rep.filament_added_cm3
+    );
+    assert!(
+        (rep.filament_added_mm - added / area).abs() <= 0.01 * (added / area).abs() + 0.1,
+        "{} mm of filament added, E says {:.1}",
+        rep.filament_added_mm,
+        added / area
+    );
     let (before, after) = (check(data), check(&out));
     assert!(before.in_air_mm > 1000.0, "{}", before.in_air_mm);
     assert!(after.in_air_mm < 2.0, "{}", after.in_air_mm);
