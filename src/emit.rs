@@ -3470,25 +3470,45 @@ pub fn process<R: BufRead + Send, W: Write + Send>(
         let budget = crate::geometry::detect::Budget::new(EMIT_AHEAD_BYTES);
         let budget = &budget;
         std::thread::scope(|s| -> io::Result<()> {
-            let (tx, rx) =
-                std::sync::mpsc::sync_channel::<(crate::geometry::Detected, usize)>(EMIT_AHEAD);
+            // Light layers go over in bundles, as from the reader (one hand-over per layer
+            // of a few strands cost more than the layer).
+            type Bundle = Vec<crate::geometry::Detected>;
+            let (tx, rx) = std::sync::mpsc::sync_channel::<(Bundle, usize)>(EMIT_AHEAD);
             let emitter = s.spawn(move || -> io::Result<()> {
                 // Frees the budget however this ends (an error or a panic here), so that
                 // detection waiting for it goes on to find the channel closed.
                 let _release = budget.release_on_drop();
-                for (d, w) in rx {
+                for (ds, w) in rx {
                     budget.give(w);
-                    push(Some(d))?;
+                    for d in ds {
+                        push(Some(d))?;
+                    }
                 }
                 push(None)
             });
+            let (mut bundle, mut bundle_w): (Bundle, usize) = (Vec::new(), 0);
+            // A closed channel: the rewrite stopped on an error, which it returns.
+            let send = |bundle: &mut Bundle, w: &mut usize| -> io::Result<()> {
+                budget.take(*w);
+                let sent = tx.send((std::mem::take(bundle), *w));
+                *w = 0;
+                sent.map_err(|_| io::Error::other("the rewrite stopped"))
+            };
             let detected = crate::geometry::detect(reader.by_ref(), &opts.detect, |d| {
                 checked(&d)?;
-                let w = crate::geometry::detect::weight(&d.layer);
-                budget.take(w);
-                // A closed channel: the rewrite stopped on an error, which it returns.
-                tx.send((d, w))
-                    .map_err(|_| io::Error::other("the rewrite stopped"))
+                bundle_w += crate::geometry::detect::weight(&d.layer);
+                bundle.push(d);
+                if crate::geometry::detect::bundle_full(bundle.len(), bundle_w) {
+                    send(&mut bundle, &mut bundle_w)?;
+                }
+                Ok(())
+            })
+            .and_then(|()| {
+                if bundle.is_empty() {
+                    Ok(())
+                } else {
+                    send(&mut bundle, &mut bundle_w)
+                }
             });
             drop(tx);
             let emitted = emitter
