@@ -133,6 +133,10 @@ impl Report {
 
 type Key = (i32, i32, i32);
 
+/// Most points judged along one move: a quarter width apart over 500 mm, longer than any
+/// bed; a longer move is judged at points farther apart.
+const MAX_MOVE_SAMPLES: usize = 5000;
+
 struct Grid {
     cell: f64,
     cells: HashMap<Key, Vec<([f64; 3], bool)>>,
@@ -274,7 +278,9 @@ pub fn check(text: &[u8], helix: &Helix, bead: Bead, keep_samples: usize) -> Rep
         let pts = m.points(0.01);
         let total = crate::geometry::polyline_length(&pts);
         let len3 = (total.powi(2) + (m.to[2] - m.from[2]).powi(2)).sqrt();
-        let n = ((len3 / step).ceil() as usize).clamp(1, 1_000_000);
+        // (A move of a damaged file can run for kilometres, Z 99999 or X 1299999: judged
+        // at most [`MAX_MOVE_SAMPLES`] times, 100 s and more before for one vase.)
+        let n = ((len3 / step).ceil() as usize).clamp(1, MAX_MOVE_SAMPLES);
         let at = |f: f64| -> [f64; 3] {
             // Point at share f of the move (along the XY polyline, Z linear).
             let want = f * total;
@@ -430,5 +436,41 @@ mod tests {
         let f = r.first.clone().expect("refused");
         assert_eq!(f.rule, Rule::Support, "{f}");
         assert!(f.turn < 1.2, "{f}");
+    }
+
+    #[test]
+    fn a_move_of_a_damaged_file_kilometres_long_is_judged_at_a_bounded_number_of_points() {
+        let text = vase(15.0, 0.2, 10);
+        let h = find(text.as_bytes()).unwrap();
+        let whole = check(text.as_bytes(), &h, BEAD, 0).points;
+        // One extrusion in the middle of the helix sent 100 m up (a flipped digit), and the
+        // next one back down.
+        let lines: Vec<&str> = text.lines().collect();
+        let k = (h.first_line as usize + h.last_line as usize) / 2 - 1;
+        let mut damaged = String::new();
+        for (i, line) in lines.iter().enumerate() {
+            if i == k {
+                let words: Vec<String> = line
+                    .split(' ')
+                    .map(|w| match w.strip_prefix('Z') {
+                        Some(_) => "Z99999".to_string(),
+                        None => w.to_string(),
+                    })
+                    .collect();
+                damaged.push_str(&words.join(" "));
+            } else {
+                damaged.push_str(line);
+            }
+            damaged.push('\n');
+        }
+        let h = find(damaged.as_bytes()).unwrap();
+        let r = check(damaged.as_bytes(), &h, BEAD, 0);
+        assert!(!r.ok(), "a move 100 m long is no printable helix");
+        // There and back: two moves of at most MAX_MOVE_SAMPLES points more than the helix.
+        assert!(
+            r.points <= whole + 2 * MAX_MOVE_SAMPLES as u64,
+            "{} points judged, {whole} without the damage",
+            r.points
+        );
     }
 }
