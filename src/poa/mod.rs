@@ -1601,6 +1601,26 @@ mod tests {
         testutil::overhang(polygon, max_distance)
     }
 
+    /// [`plan`] of the region `poly` of `area` over `below`, with nothing else near it,
+    /// from the origin.
+    fn plan_over(
+        poly: Polygon<f64>,
+        below: &MultiPolygon<f64>,
+        area: &MultiPolygon<f64>,
+        widths: Widths,
+        settings: &PoaSettings,
+    ) -> Plan {
+        plan(
+            &region(poly, below),
+            below,
+            area,
+            &Others::default(),
+            widths,
+            settings,
+            [0.0, 0.0],
+        )
+    }
+
     /// Plans every region of `area` over `below` and checks the plan's geometry.
     ///
     /// Long by design: the test's geometric checks of one plan (containment, bite, coverage,
@@ -1619,15 +1639,7 @@ mod tests {
         let uncovered = difference(&area, &below);
         assert!(!uncovered.0.is_empty(), "{name}: no region");
         for poly in &uncovered.0 {
-            let plan = plan(
-                &region(poly.clone(), &below),
-                &below,
-                &area,
-                &Others::default(),
-                widths,
-                &settings,
-                [0.0, 0.0],
-            );
+            let plan = plan_over(poly.clone(), &below, &area, widths, &settings);
             assert!(plan.loops >= 1, "{name}: no loops");
             // 1. Every strand inside the zone (its centreline; 1 um of rounding allowed).
             let zone_grown = offset(&plan.zone, 0.001);
@@ -1720,15 +1732,7 @@ mod tests {
             perimeter_width: W,
             tolerance: W / 2.0,
         };
-        let plan = plan(
-            &region(band.0[0].clone(), &below),
-            &below,
-            &area,
-            &Others::default(),
-            widths,
-            &settings,
-            [0.0, 0.0],
-        );
+        let plan = plan_over(band.0[0].clone(), &below, &area, widths, &settings);
         assert!(plan.loops >= 1);
         // The deposition check's rule: a point is held where material lies within a
         // quarter width of it, below or laid earlier in the plan.
@@ -1921,15 +1925,7 @@ mod tests {
             tolerance: W / 2.0,
         };
         let settings = PoaSettings::default();
-        let plan = plan(
-            &region(poly, &below),
-            &below,
-            &area,
-            &Others::default(),
-            widths,
-            &settings,
-            [0.0, 0.0],
-        );
+        let plan = plan_over(poly, &below, &area, widths, &settings);
         let rings: Vec<&Polyline> = plan
             .strands
             .iter()
@@ -1974,14 +1970,12 @@ mod tests {
             tolerance: W / 2.0,
         };
         let zone = difference(&shelf, &below);
-        let plan = super::plan(
-            &region(zone.0[0].clone(), &below),
+        let plan = plan_over(
+            zone.0[0].clone(),
             &below,
             &shelf,
-            &Others::default(),
             widths,
             &PoaSettings::default(),
-            [0.0, 0.0],
         );
         let loops: Vec<&Strand> = plan
             .strands
@@ -2059,14 +2053,12 @@ mod tests {
             ];
             for (name, (below, area, to_below)) in cases {
                 let zone = difference(&area, &below);
-                let plan = plan(
-                    &region(zone.0[0].clone(), &below),
+                let plan = plan_over(
+                    zone.0[0].clone(),
                     &below,
                     &area,
-                    &Others::default(),
                     widths,
                     &PoaSettings::default(),
-                    [0.0, 0.0],
                 );
                 if plan.strands.is_empty() {
                     // Only where the slicer's perimeter rests on the wall below as it is.
