@@ -16,8 +16,10 @@ pub mod deform;
 pub mod picture;
 pub mod printable;
 
+use std::path::Path;
+
 use crate::error::Error;
-use crate::gcode::{parse_line, split_lines, strip_terminator};
+use crate::gcode::{parse_line, split_lines, strip_terminator, LineReader};
 use crate::machine::{Action, Machine, Move};
 
 /// Least rise of the helix (mm).
@@ -57,6 +59,49 @@ pub fn moves(text: &[u8], mut each: impl FnMut(&Move, &Machine)) {
         if let Action::Move(m) = machine.step(&parsed, i as u64 + 1) {
             each(&m, &before);
         }
+    }
+}
+
+/// Where the moves of a print are read from, once per pass: a text in memory, or a file read
+/// a line at a time ([`FileSource`]), so that judging whether a file of any size is a
+/// layer-less print holds one line, not the file.
+pub trait Source {
+    /// Calls `each` on every move in order, as [`moves`] does.
+    fn each_move(&self, each: &mut dyn FnMut(&Move, &Machine)) -> Result<(), Error>;
+}
+
+impl Source for [u8] {
+    fn each_move(&self, each: &mut dyn FnMut(&Move, &Machine)) -> Result<(), Error> {
+        moves(self, each);
+        Ok(())
+    }
+}
+
+/// A regular file read line by line, from the start, at each pass (up to the size it had
+/// when each pass opened it). A line over [`crate::gcode::MAX_LINE`] ends the pass with an
+/// error, as the layered reader refuses it.
+pub struct FileSource<'a>(pub &'a Path);
+
+impl Source for FileSource<'_> {
+    fn each_move(&self, each: &mut dyn FnMut(&Move, &Machine)) -> Result<(), Error> {
+        use std::io::Read;
+        let (file, size) = crate::input::open_regular(self.0)?;
+        let mut lines =
+            LineReader::new(std::io::BufReader::with_capacity(1 << 16, file.take(size)));
+        let mut machine = Machine::new();
+        let mut buf = Vec::new();
+        let read_err = |source| Error::Read {
+            path: self.0.to_path_buf(),
+            source,
+        };
+        while let Some(number) = lines.read_into(&mut buf).map_err(read_err)? {
+            let before = machine.snapshot();
+            let parsed = parse_line(strip_terminator(&buf));
+            if let Action::Move(m) = machine.step(&parsed, number) {
+                each(&m, &before);
+            }
+        }
+        Ok(())
     }
 }
 
@@ -110,6 +155,12 @@ fn step(m: &Move) -> Step {
 
 /// The helix of `text`, or a refusal saying to slice in vase mode.
 pub fn find(text: &[u8]) -> Result<Helix, Error> {
+    find_in(text)
+}
+
+/// The helix of the print `src` reads (two passes), or a refusal saying to slice in vase
+/// mode; a read error of a file as it is.
+pub fn find_in<S: Source + ?Sized>(src: &S) -> Result<Helix, Error> {
     #[derive(Clone, Copy, Default)]
     struct Run {
         first: u64,
@@ -125,7 +176,7 @@ pub fn find(text: &[u8]) -> Result<Helix, Error> {
     let mut cur: Option<Run> = None;
     let mut total = 0.0;
     let mut flat = 0.0;
-    moves(text, |m, _| {
+    src.each_move(&mut |m, _| {
         if m.is_extrusion() {
             total += len3(m);
         }
@@ -178,7 +229,7 @@ pub fn find(text: &[u8]) -> Result<Helix, Error> {
                 }
             }
         }
-    });
+    })?;
     if let Some(r) = cur.take() {
         if r.length > best.length {
             best = r;
@@ -206,7 +257,7 @@ pub fn find(text: &[u8]) -> Result<Helix, Error> {
     let mut prev: Option<f64> = None;
     let (mut r_sum, mut r_n) = (0.0, 0.0);
     let mut first_top = None;
-    moves(text, |m, _| {
+    src.each_move(&mut |m, _| {
         if m.line < best.first || m.line > best.last || m.xy_length() <= 0.0 {
             return;
         }
@@ -229,7 +280,7 @@ pub fn find(text: &[u8]) -> Result<Helix, Error> {
             r_sum += l * ((m.to[0] - center[0]).hypot(m.to[1] - center[1]));
             r_n += l;
         }
-    });
+    })?;
     let turns = angle.abs() / std::f64::consts::TAU;
     if turns < 1.5 {
         return Err(refuse(format!(
@@ -372,6 +423,32 @@ pub(crate) mod tests {
         );
         assert!((h.r0 - 15.0).abs() < 0.01, "{h:?}");
         assert_eq!(h.first_line, 6 + 64);
+    }
+
+    #[test]
+    fn a_file_read_a_line_at_a_time_gives_the_helix_and_judgement_of_the_text_in_memory() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("vase.gcode");
+        let text = vase(15.0, 0.2, 12);
+        std::fs::write(&path, &text).unwrap();
+        let src = FileSource(&path);
+        let h = find_in(&src).unwrap();
+        assert_eq!(h, find(text.as_bytes()).unwrap());
+        let bead = printable::Bead {
+            width: 0.45,
+            height: 0.2,
+            nozzle_radius: 0.2,
+        };
+        let from_file = printable::check_in(&src, &h, bead, 50).unwrap();
+        let in_memory = printable::check(text.as_bytes(), &h, bead, 50);
+        assert!(from_file.points > 1000);
+        assert_eq!(format!("{from_file:?}"), format!("{in_memory:?}"));
+        // A damaged file (a line of 2 MiB) is a read error, not a line held whole nor a
+        // refusal taken for "not a vase".
+        let mut damaged = text.into_bytes();
+        damaged.extend(std::iter::repeat_n(b'9', 2 << 20));
+        std::fs::write(&path, &damaged).unwrap();
+        assert!(matches!(find_in(&src), Err(Error::Read { .. })));
     }
 
     #[test]

@@ -130,13 +130,26 @@ pub fn layerless(
     config: &crate::layers::SlicerConfig,
     title: &str,
 ) -> Option<Pictures> {
-    let helix = crate::helix::find(text).ok()?;
+    layerless_in(text, config, title).ok().flatten()
+}
+
+/// [`layerless`] of the print `src` reads (a file a line at a time); a read error as it is.
+pub fn layerless_in<S: crate::helix::Source + ?Sized>(
+    src: &S,
+    config: &crate::layers::SlicerConfig,
+    title: &str,
+) -> Result<Option<Pictures>, crate::error::Error> {
+    let helix = match crate::helix::find_in(src) {
+        Ok(h) => h,
+        Err(crate::error::Error::Refused(_)) => return Ok(None),
+        Err(e) => return Err(e),
+    };
     let bead = crate::helix::bead_of(config, &helix);
-    let report = crate::helix::printable::check(text, &helix, bead, 20_000);
-    Some(Pictures {
+    let report = crate::helix::printable::check_in(src, &helix, bead, 20_000)?;
+    Ok(Some(Pictures {
         page: page(title, &report, helix.center, bead),
         profile: profile_svg(&report, helix.center, bead),
         top: top_svg(&report, bead),
         report,
-    })
+    }))
 }

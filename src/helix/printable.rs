@@ -21,7 +21,7 @@ use std::collections::VecDeque;
 
 use rustc_hash::FxHashMap as HashMap;
 
-use crate::helix::{moves, Helix};
+use crate::helix::Helix;
 
 /// Own-path length excluded from support, in bead widths.
 pub const GUARD_WIDTHS: f64 = 4.0;
@@ -248,6 +248,17 @@ impl Grid {
 /// Judges every point of `helix` in `text` (see the module doc). `keep_samples` keeps at
 /// most that many judged points, evenly spread, for pictures.
 pub fn check(text: &[u8], helix: &Helix, bead: Bead, keep_samples: usize) -> Report {
+    // (A text in memory is read without error.)
+    check_in(text, helix, bead, keep_samples).unwrap_or_default()
+}
+
+/// [`check`] of the print `src` reads (one pass; a file is read a line at a time).
+pub fn check_in<S: crate::helix::Source + ?Sized>(
+    src: &S,
+    helix: &Helix,
+    bead: Bead,
+    keep_samples: usize,
+) -> Result<Report, crate::error::Error> {
     let step = (bead.width / 4.0).max(0.02);
     let guard = GUARD_WIDTHS * bead.width;
     let mut grid = Grid {
@@ -271,7 +282,7 @@ pub fn check(text: &[u8], helix: &Helix, bead: Bead, keep_samples: usize) -> Rep
         .ceil()
         .max(1.0) as u64;
     let c = helix.center;
-    moves(text, |m, _| {
+    src.each_move(&mut |m, _| {
         if !m.is_extrusion() || m.line > helix.last_line {
             return;
         }
@@ -387,8 +398,8 @@ pub fn check(text: &[u8], helix: &Helix, bead: Bead, keep_samples: usize) -> Rep
             }
             pending.push_back((path, p));
         }
-    });
-    report
+    })?;
+    Ok(report)
 }
 
 #[cfg(test)]

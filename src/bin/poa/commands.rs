@@ -130,8 +130,8 @@ pub fn preview(
         source,
     };
     if opened.binary.is_none() {
-        let text = input::read_all(&file)?;
-        if let Some(p) = printonair::helix::picture::layerless(&text, &opened.config, &title) {
+        let src = printonair::helix::FileSource(&file);
+        if let Some(p) = printonair::helix::picture::layerless_in(&src, &opened.config, &title)? {
             return preview_layerless(&file, &output, &p);
         }
     }
@@ -453,12 +453,16 @@ fn check_layerless(
     fail_in_air: Option<f64>,
 ) -> anyhow::Result<Option<ExitCode>> {
     use printonair::helix;
-    let text = input::read_all(file)?;
-    let Ok(h) = helix::find(&text) else {
-        return Ok(None);
+    // Read a line at a time (twice, and once more for a helix): a layered plate of any size
+    // is told from a vase without holding it.
+    let src = helix::FileSource(file);
+    let h = match helix::find_in(&src) {
+        Ok(h) => h,
+        Err(printonair::Error::Refused(_)) => return Ok(None),
+        Err(e) => return Err(e.into()),
     };
     let bead = helix::bead_of(&config, &h);
-    let rep = helix::printable::check(&text, &h, bead, 0);
+    let rep = helix::printable::check_in(&src, &h, bead, 0)?;
     if json {
         #[derive(serde::Serialize)]
         struct Out<'a> {
