@@ -198,7 +198,8 @@ fn skip_blanks(s: &[u8]) -> &[u8] {
     &s[n..]
 }
 
-/// A G-code number: optional sign, digits, optional fraction (`10`, `-.5`, `+3.`, `1e3`).
+/// A G-code number: optional sign, digits, optional fraction, optional lowercase exponent
+/// (`10`, `-.5`, `+3.`, `1e3`); an uppercase `E` ends it (`60E9` is 60, then the word `E9`).
 /// Plain decimals take an exact fast path; anything else goes through the standard parser.
 pub fn number(input: &[u8]) -> IResult<&[u8], f64> {
     let fail = || {
@@ -246,8 +247,11 @@ pub fn number(input: &[u8]) -> IResult<&[u8], f64> {
     }
     let mut end = i;
     let mut exact = int_digits + frac_digits <= 15;
-    // Exponent: rare in G-code but legal in some generators.
-    if i < len && (input[i] == b'e' || input[i] == b'E') {
+    // `E` is a word's letter, never an exponent: files written without blanks
+    // (`G1X60E9F1000`, as MeatPack sends them) are X 60 and E 9 to every firmware (Marlin
+    // stops a number at `E`, Klipper and RepRapFirmware split words at letters), not X 60e9.
+    // A lowercase `e` and digits is the exponent generators print (`E1e-05`: 0.00001).
+    if i < len && input[i] == b'e' {
         let mut j = i + 1;
         if j < len && (input[j] == b'-' || input[j] == b'+') {
             j += 1;
@@ -531,6 +535,16 @@ mod tests {
     }
 
     #[test]
+    fn a_line_without_blanks_reads_as_firmware_reads_it() {
+        let spaced = parse_line(b"G1 X60 E9 F1000");
+        let packed = parse_line(b"G1X60E9F1000");
+        assert_eq!(packed.command, spaced.command);
+        assert_eq!(packed.words, spaced.words);
+        let w: Vec<(u8, f64)> = packed.words.iter().map(|w| (w.letter, w.value)).collect();
+        assert_eq!(w, [(b'X', 60.0), (b'E', 9.0), (b'F', 1000.0)]);
+    }
+
+    #[test]
     fn numbers() {
         for (s, v) in [
             ("1", 1.0),
@@ -538,13 +552,15 @@ mod tests {
             ("+3.", 3.0),
             ("0.1", 0.1),
             ("123.456", 123.456),
-            ("1e3", 1000.0),
             ("12345678901234567890.5", 12345678901234567890.5),
         ] {
             let (rest, got) = number(s.as_bytes()).unwrap();
             assert!(rest.is_empty(), "{s}");
             assert_eq!(got, v, "{s}");
         }
+        assert_eq!(number(b"1e3").unwrap(), (&b""[..], 1000.0));
+        // `E` ends a number, as firmware reads it: the next word's letter.
+        assert_eq!(number(b"60E9").unwrap(), (&b"E9"[..], 60.0));
         assert!(number(b"-").is_err());
         assert!(number(b".").is_err());
         assert!(number(b"x").is_err());

@@ -319,3 +319,37 @@ fn cura_slic3r_and_comment_less_files() {
         );
     }
 }
+
+#[test]
+fn a_file_written_without_blanks_is_rewritten_as_the_same_file_with_them() {
+    // `G1X60E9F1000` (as MeatPack sends lines, or a file squeezed to save bytes) is X 60,
+    // E 9 to every firmware; read as X 60e9 it made twelve false floating regions and lost
+    // the real one.
+    let spaced = read(&sample("rect_overhang_prusa_abs.gcode"));
+    let packed: Vec<u8> = spaced
+        .split_inclusive(|&b| b == b'\n')
+        .flat_map(|line| {
+            let cut = line.iter().position(|&b| b == b';').unwrap_or(line.len());
+            let (code, comment) = line.split_at(cut);
+            code.iter()
+                .copied()
+                .filter(|&b| b != b' ')
+                .chain(comment.iter().copied())
+                .collect::<Vec<u8>>()
+        })
+        .collect();
+    assert!(packed.len() < spaced.len() - 50_000);
+    let (out_s, rep_s) = rewrite(&spaced, BridgeMode::Keep);
+    let (out_p, rep_p) = rewrite(&packed, BridgeMode::Keep);
+    assert_eq!(rep_s.regions_rewritten, 1);
+    assert_eq!(rep_p.regions_rewritten, rep_s.regions_rewritten);
+    let block = |out: &[u8]| -> Vec<u8> {
+        let (a, b) = poa_blocks(out)[0];
+        out.split(|&c| c == b'\n')
+            .skip(a as usize - 1)
+            .take((b - a + 1) as usize)
+            .flat_map(|l| l.iter().copied().chain(std::iter::once(b'\n')))
+            .collect()
+    };
+    assert_eq!(block(&out_p), block(&out_s), "the loops differ");
+}
