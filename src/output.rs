@@ -177,7 +177,10 @@ pub fn remove_temps_on_signals() {
                 if libc::sigwait(&set, &mut sig) != 0 {
                     return;
                 }
-                if let Ok(v) = LIVE_TEMPS.lock() {
+                // The list stays locked until the signal ends the process: no temporary file
+                // is made (or left) between the removal and the end.
+                let held = LIVE_TEMPS.lock();
+                if let Ok(v) = &held {
                     for p in v.iter() {
                         let _ = fs::remove_file(p);
                     }
@@ -212,9 +215,12 @@ impl Temp {
                 std::process::id(),
                 random_suffix()
             ));
+            // Made and listed under the lock, so that a signal never finds the file made
+            // but not yet listed (it was left behind when one came in between).
+            let mut live = LIVE_TEMPS.lock();
             match OpenOptions::new().write(true).create_new(true).open(&path) {
                 Ok(f) => {
-                    if let Ok(mut v) = LIVE_TEMPS.lock() {
+                    if let Ok(v) = &mut live {
                         v.push(path.clone());
                     }
                     return Ok((Temp { path, live: true }, f));
