@@ -68,6 +68,103 @@ const CROWD_CELL: f64 = 1.0;
 /// they are buffered by Clipper instead (a solid layer covers its cells about once).
 const CROWDED: f64 = 4.0;
 
+/// Most cells a side of the raster a crowded layer's footprint is drawn on
+/// ([`Strands::buffer_crowded`]).
+const RASTER_CELLS: usize = 4096;
+
+/// Finest cell (mm) of that raster.
+const RASTER_CELL: f64 = 0.05;
+
+/// The cells of an `nx` x `ny` raster that are empty in `bits` and joined to its edge by
+/// empty cells (a bit set, row by row), by a flood of row runs: the stack holds seeds, at
+/// most a few per run.
+fn outside_cells(bits: &[u64], nx: usize, ny: usize) -> Vec<u64> {
+    let get = |v: &[u64], k: usize| v[k / 64] >> (k % 64) & 1 == 1;
+    let mut out = vec![0u64; bits.len()];
+    let free = |out: &[u64], r: usize, c: usize| {
+        let k = r * nx + c;
+        !get(bits, k) && !get(out, k)
+    };
+    let mut stack: Vec<(usize, usize)> = Vec::new();
+    for c in 0..nx {
+        stack.push((0, c));
+        stack.push((ny - 1, c));
+    }
+    for r in 0..ny {
+        stack.push((r, 0));
+        stack.push((r, nx - 1));
+    }
+    while let Some((r, c)) = stack.pop() {
+        if !free(&out, r, c) {
+            continue;
+        }
+        let (mut a, mut b) = (c, c);
+        while a > 0 && free(&out, r, a - 1) {
+            a -= 1;
+        }
+        while b + 1 < nx && free(&out, r, b + 1) {
+            b += 1;
+        }
+        for x in a..=b {
+            let k = r * nx + x;
+            out[k / 64] |= 1 << (k % 64);
+        }
+        for nr in [r.wrapping_sub(1), r + 1] {
+            if nr >= ny {
+                continue;
+            }
+            let mut x = a;
+            while x <= b {
+                if free(&out, nr, x) {
+                    stack.push((nr, x));
+                    while x <= b && free(&out, nr, x) {
+                        x += 1;
+                    }
+                } else {
+                    x += 1;
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Where the line `y = yc` meets the points within `half` of the segment `a`-`b`: the x
+/// interval, or `None`. The capsule is convex, so the interval runs from the least to the
+/// greatest x its pieces (the two end discs, the band between them) meet the line at.
+fn capsule_row(a: [f64; 2], b: [f64; 2], half: f64, yc: f64) -> Option<(f64, f64)> {
+    let (mut xl, mut xr) = (f64::INFINITY, f64::NEG_INFINITY);
+    for p in [a, b] {
+        let dy = yc - p[1];
+        if dy.abs() <= half {
+            let dx = (half * half - dy * dy).sqrt();
+            xl = xl.min(p[0] - dx);
+            xr = xr.max(p[0] + dx);
+        }
+    }
+    let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+    let len = dx.hypot(dy);
+    if len > 0.0 {
+        let n = [-dy / len * half, dx / len * half];
+        // The band's four edges: the segment shifted by +-n, and the ends' cross lines.
+        let corners = [
+            [a[0] + n[0], a[1] + n[1]],
+            [b[0] + n[0], b[1] + n[1]],
+            [b[0] - n[0], b[1] - n[1]],
+            [a[0] - n[0], a[1] - n[1]],
+        ];
+        for i in 0..4 {
+            let (p, q) = (corners[i], corners[(i + 1) % 4]);
+            if (p[1] - yc) * (q[1] - yc) <= 0.0 && p[1] != q[1] {
+                let x = p[0] + (yc - p[1]) / (q[1] - p[1]) * (q[0] - p[0]);
+                xl = xl.min(x);
+                xr = xr.max(x);
+            }
+        }
+    }
+    (xl <= xr).then_some((xl, xr))
+}
+
 /// Most cell visits [`Strands::crowded`] makes before it calls strands crowded.
 const MAX_CROWD_VISITS: usize = 5_000_000;
 
@@ -194,23 +291,106 @@ impl Strands {
         beads > CROWDED * cells.len() as f64 * CROWD_CELL * CROWD_CELL
     }
 
-    /// [`Strands::buffer_whole`] for crowded strands: Clipper's offset of open paths, whose
-    /// sweep takes the crossings in its stride.
+    /// [`Strands::buffer_whole`] for crowded strands (only a damaged or hostile file piles
+    /// strands so): drawn on a raster of at most [`RASTER_CELLS`] cells a side, each cell
+    /// whose centre lies within a strand's half width set, then the cells' runs joined into
+    /// polygons. Any exact buffer meets every crossing of the strands: Clipper's sweep took
+    /// 8 s for a layer of 50 000 short strokes wandering over each other, minutes and 3 GB
+    /// for 2 million; the raster takes time in proportion to the beads' area and memory to
+    /// its cells (2 MB). The outline is exact to a cell (0.05 mm on a plate).
     fn buffer_crowded(&self) -> MultiPolygon<f64> {
-        use geo_clipper::{ClipperOpen, EndType, JoinType};
-        let parts: Vec<MultiPolygon<f64>> = self
-            .0
-            .iter()
-            .map(|(key, lines)| {
-                MultiLineString::new(lines.clone()).offset(
-                    *key as f64 / 2000.0,
-                    JoinType::Round(super::ARC_TOLERANCE * super::CLIPPER_SCALE),
-                    EndType::OpenRound(super::ARC_TOLERANCE * super::CLIPPER_SCALE),
-                    super::CLIPPER_SCALE,
-                )
-            })
-            .collect();
-        super::union_all(&parts.iter().collect::<Vec<_>>())
+        use geo_clipper::Clipper;
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        let mut reach: f64 = 0.0;
+        for (key, lines) in &self.0 {
+            let half = *key as f64 / 2000.0;
+            if !(half > 0.0 && half.is_finite()) {
+                continue;
+            }
+            reach = reach.max(half);
+            for c in lines.iter().flat_map(|l| l.0.iter()) {
+                if c.x.is_finite() && c.y.is_finite() {
+                    lo = [lo[0].min(c.x), lo[1].min(c.y)];
+                    hi = [hi[0].max(c.x), hi[1].max(c.y)];
+                }
+            }
+        }
+        if !(lo[0] <= hi[0] && lo[1] <= hi[1]) {
+            return MultiPolygon::new(Vec::new());
+        }
+        let (lo, hi) = (
+            [lo[0] - reach, lo[1] - reach],
+            [hi[0] + reach, hi[1] + reach],
+        );
+        let extent = (hi[0] - lo[0]).max(hi[1] - lo[1]);
+        let cell = RASTER_CELL.max(extent / RASTER_CELLS as f64);
+        if !cell.is_finite() {
+            return MultiPolygon::new(Vec::new());
+        }
+        let nx = (((hi[0] - lo[0]) / cell).ceil() as usize).clamp(1, RASTER_CELLS);
+        let ny = (((hi[1] - lo[1]) / cell).ceil() as usize).clamp(1, RASTER_CELLS);
+        let mut bits = vec![0u64; (nx * ny).div_ceil(64)];
+        for (key, lines) in &self.0 {
+            let half = *key as f64 / 2000.0;
+            if !(half > 0.0 && half.is_finite()) {
+                continue;
+            }
+            for l in lines {
+                for seg in l.0.windows(2) {
+                    let (a, b) = ([seg[0].x, seg[0].y], [seg[1].x, seg[1].y]);
+                    if !a.iter().chain(b.iter()).all(|v| v.is_finite()) {
+                        continue;
+                    }
+                    let y0 = a[1].min(b[1]) - half;
+                    let y1 = a[1].max(b[1]) + half;
+                    let r0 = (((y0 - lo[1]) / cell - 0.5).ceil().max(0.0)) as usize;
+                    let r1 = ((((y1 - lo[1]) / cell - 0.5).floor()) as usize).min(ny - 1);
+                    for r in r0..=r1 {
+                        let yc = lo[1] + (r as f64 + 0.5) * cell;
+                        let Some((xl, xr)) = capsule_row(a, b, half, yc) else {
+                            continue;
+                        };
+                        let c0 = (((xl - lo[0]) / cell - 0.5).ceil().max(0.0)) as usize;
+                        let c1 = (((xr - lo[0]) / cell - 0.5).floor().max(-1.0)) as isize;
+                        let c1 = (c1.min(nx as isize - 1)).max(-1);
+                        for c in c0 as isize..=c1 {
+                            let k = r * nx + c as usize;
+                            bits[k / 64] |= 1 << (k % 64);
+                        }
+                    }
+                }
+            }
+        }
+        // The empty cells reached from the raster's edge are outside; the rest are holes in
+        // the pile, filled: a wandering stroke leaves thousands of specks of holes, and
+        // every boolean after pays for each hole against each outline (minutes more).
+        let outside = outside_cells(&bits, nx, ny);
+        // Each row's runs of cells not outside as rectangles; Clipper joins the touching ones.
+        let mut rects = Vec::new();
+        for r in 0..ny {
+            let set = |c: usize| {
+                let k = r * nx + c;
+                outside[k / 64] >> (k % 64) & 1 == 0
+            };
+            let mut c = 0;
+            while c < nx {
+                if !set(c) {
+                    c += 1;
+                    continue;
+                }
+                let start = c;
+                while c < nx && set(c) {
+                    c += 1;
+                }
+                let (x0, x1) = (lo[0] + start as f64 * cell, lo[0] + c as f64 * cell);
+                let (y0, y1) = (lo[1] + r as f64 * cell, lo[1] + (r + 1) as f64 * cell);
+                rects.push(
+                    geo::Rect::new(coord! {x: x0, y: y0}, coord! {x: x1, y: y1}).to_polygon(),
+                );
+            }
+        }
+        let rects = MultiPolygon::new(rects);
+        Clipper::union(&rects, &MultiPolygon::new(Vec::new()), super::CLIPPER_SCALE)
     }
 
     /// Groups of strands whose footprints cannot meet: no strand's box, grown by more than
@@ -834,6 +1014,49 @@ mod tests {
     use crate::layers::Role;
 
     use crate::layers::testing::path;
+
+    #[test]
+    fn a_pile_of_strokes_is_drawn_on_a_raster_true_to_a_cell_and_without_specks_of_holes() {
+        // A damaged layer: 300 strokes back and forth over one 10 mm line, and a square
+        // ring scribbled over 40 times. Crowded, so rasterised: the line's footprint is its
+        // capsule, to a cell; the ring's inside, enclosed by the pile, is filled.
+        let mut line = Vec::new();
+        for i in 0..300 {
+            line.push(if i % 2 == 0 { [0.0, 0.0] } else { [10.0, 0.0] });
+        }
+        let s = Strands::of_lines([(&line[..], 0.45)]);
+        assert!(s.crowded());
+        let f = s.buffer();
+        let capsule = 10.0 * 0.45 + std::f64::consts::PI * 0.225 * 0.225;
+        assert!(
+            (f.unsigned_area() - capsule).abs() < 0.06 * capsule,
+            "{} vs {capsule}",
+            f.unsigned_area()
+        );
+        assert_eq!(f.0.len(), 1);
+        // The scribbled ring: one outline, its inside filled (a pile's holes are specks
+        // the slicer never meant).
+        let mut ring = Vec::new();
+        for _ in 0..40 {
+            ring.extend([[0.0, 0.0], [6.0, 0.0], [6.0, 6.0], [0.0, 6.0]]);
+        }
+        ring.push([0.0, 0.0]);
+        let s = Strands::of_lines([(&ring[..], 0.45)]);
+        assert!(s.crowded());
+        let f = s.buffer();
+        assert_eq!(f.0.len(), 1);
+        assert!(f.0[0].interiors().is_empty());
+        let square = 6.45 * 6.45;
+        assert!(
+            (f.unsigned_area() - square).abs() < 0.03 * square,
+            "{} vs {square}",
+            f.unsigned_area()
+        );
+        // Where a row meets a stroke's capsule.
+        let (l, r) = capsule_row([0.0, 0.0], [10.0, 0.0], 0.5, 0.3).unwrap();
+        assert!((l + 0.4).abs() < 1e-9 && (r - 10.4).abs() < 1e-9, "{l} {r}");
+        assert!(capsule_row([0.0, 0.0], [10.0, 0.0], 0.5, 0.6).is_none());
+    }
 
     #[test]
     fn a_finely_divided_strand_has_the_footprint_of_its_chords() {
