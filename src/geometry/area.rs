@@ -165,6 +165,10 @@ fn capsule_row(a: [f64; 2], b: [f64; 2], half: f64, yc: f64) -> Option<(f64, f64
     (xl <= xr).then_some((xl, xr))
 }
 
+/// Cells covered over [`CROWDED`] times by beads that make a layer crowded wherever its
+/// other strands run ([`Strands::crowded`]).
+const CROWDED_CELLS: usize = 16;
+
 /// Most cell visits [`Strands::crowded`] makes before it calls strands crowded.
 const MAX_CROWD_VISITS: usize = 5_000_000;
 
@@ -260,7 +264,8 @@ impl Strands {
     /// layer (several layers' strands in one, found by fuzzing), and geo's stroke buffer meets
     /// every crossing of its strands one by one: minutes for a 300 kB file.
     fn crowded(&self) -> bool {
-        let mut cells = std::collections::HashSet::new();
+        // Bead area by cell: each sample of a segment brings its share.
+        let mut cells: std::collections::HashMap<(i64, i64), f64> = Default::default();
         let (mut beads, mut visits) = (0.0, 0usize);
         for (key, lines) in &self.0 {
             let w = *key as f64 / 1000.0;
@@ -277,18 +282,25 @@ impl Strands {
                     if visits > MAX_CROWD_VISITS {
                         return true;
                     }
+                    let share = len * w / (n + 1) as f64;
                     for k in 0..=n {
                         let t = if n == 0 { 0.0 } else { k as f64 / n as f64 };
                         let (x, y) = (a.x + t * (b.x - a.x), a.y + t * (b.y - a.y));
-                        cells.insert((
-                            (x / CROWD_CELL).floor() as i64,
-                            (y / CROWD_CELL).floor() as i64,
-                        ));
+                        *cells
+                            .entry((
+                                (x / CROWD_CELL).floor() as i64,
+                                (y / CROWD_CELL).floor() as i64,
+                            ))
+                            .or_default() += share;
                     }
                 }
             }
         }
-        beads > CROWDED * cells.len() as f64 * CROWD_CELL * CROWD_CELL
+        let cell_area = CROWD_CELL * CROWD_CELL;
+        // A pile somewhere counts even when long strands elsewhere thin the layer's mean
+        // out (a scribble with one move 97 m away and back: its exact buffer took 18 GB).
+        let piled = cells.values().filter(|&&a| a > CROWDED * cell_area).count();
+        beads > CROWDED * cells.len() as f64 * cell_area || piled >= CROWDED_CELLS
     }
 
     /// [`Strands::buffer_whole`] for crowded strands (only a damaged or hostile file piles
@@ -1052,6 +1064,23 @@ mod tests {
             "{} vs {square}",
             f.unsigned_area()
         );
+        // A pile stays crowded when a move far away and back thins the layer's mean out
+        // (a damaged digit: X 97104 for X 97.104): the exact buffer of the pile took 18 GB.
+        let mut far = ring.clone();
+        far.extend([[97_104.0, 0.0], [0.0, 0.0]]);
+        assert!(Strands::of_lines([(&far[..], 0.45)]).crowded());
+        // A slicer's solid layer is not crowded.
+        let solid: Vec<[f64; 2]> = (0..100)
+            .flat_map(|i| {
+                let y = 0.45 * i as f64;
+                if i % 2 == 0 {
+                    [[0.0, y], [40.0, y]]
+                } else {
+                    [[40.0, y], [0.0, y]]
+                }
+            })
+            .collect();
+        assert!(!Strands::of_lines([(&solid[..], 0.45)]).crowded());
         // Where a row meets a stroke's capsule.
         let (l, r) = capsule_row([0.0, 0.0], [10.0, 0.0], 0.5, 0.3).unwrap();
         assert!((l + 0.4).abs() < 1e-9 && (r - 10.4).abs() < 1e-9, "{l} {r}");
