@@ -402,7 +402,12 @@ impl Strands {
             }
         }
         let rects = MultiPolygon::new(rects);
-        Clipper::union(&rects, &MultiPolygon::new(Vec::new()), super::CLIPPER_SCALE)
+        // The cells' stairs simplified to within a cell: every offset after would round
+        // each step's corner (planning a region of such stairs took minutes).
+        geo::Simplify::simplify(
+            &Clipper::union(&rects, &MultiPolygon::new(Vec::new()), super::CLIPPER_SCALE),
+            cell,
+        )
     }
 
     /// Groups of strands whose footprints cannot meet: no strand's box, grown by more than
