@@ -1972,6 +1972,21 @@ mod tests {
         }
     }
 
+    /// The length of `plan`'s loop strands and the straight hops from each to the next.
+    fn loops_length_and_hops(plan: &Plan) -> (f64, f64) {
+        let loops: Vec<&Strand> = plan
+            .strands
+            .iter()
+            .filter(|s| s.kind == StrandKind::Loop)
+            .collect();
+        let length: f64 = loops.iter().map(|s| s.length()).sum();
+        let hops: f64 = loops
+            .windows(2)
+            .map(|p| dist2(p[0].points[p[0].points.len() - 1], p[1].points[0]).sqrt())
+            .sum();
+        (length, hops)
+    }
+
     /// The deposition check's rule on every strand of `plan`: each point is held where
     /// material lies within a quarter width of it, below or laid earlier in the plan.
     fn assert_each_strand_held(plan: &Plan, below: &MultiPolygon<f64>) {
@@ -2016,16 +2031,7 @@ mod tests {
         );
         assert!(plan.loops >= 4, "{}", plan.loops);
         assert_each_strand_held(&plan, &below);
-        let loops: Vec<&Strand> = plan
-            .strands
-            .iter()
-            .filter(|s| s.kind == StrandKind::Loop)
-            .collect();
-        let length: f64 = loops.iter().map(|s| s.length()).sum();
-        let hops: f64 = loops
-            .windows(2)
-            .map(|p| dist2(p[0].points[p[0].points.len() - 1], p[1].points[0]).sqrt())
-            .sum();
+        let (length, hops) = loops_length_and_hops(&plan);
         assert!(
             hops < 0.06 * length,
             "{hops:.1} mm between loop strands for {length:.1} mm of loops"
@@ -2291,19 +2297,7 @@ mod tests {
             widths,
             &PoaSettings::default(),
         );
-        let loops: Vec<&Strand> = plan
-            .strands
-            .iter()
-            .filter(|s| s.kind == StrandKind::Loop)
-            .collect();
-        let length: f64 = loops.iter().map(|s| s.length()).sum();
-        let travel: f64 = loops
-            .windows(2)
-            .map(|w| {
-                let (a, b) = (w[0].points[w[0].points.len() - 1], w[1].points[0]);
-                dist2(a, b).sqrt()
-            })
-            .sum();
+        let (length, travel) = loops_length_and_hops(&plan);
         assert!(
             travel <= 0.10 * length,
             "travel {travel:.1} mm for {length:.1} mm of loops"
