@@ -576,8 +576,9 @@ pub fn max_distance(polygon: &Polygon<f64>, below: &MultiPolygon<f64>) -> f64 {
         .0
         .iter()
         .filter(|q| !q.exterior().0.is_empty())
-        .min_by(|a, b| box_gap(a).total_cmp(&box_gap(b)))
-        .and_then(|q| q.exterior().0.first())
+        .map(|q| (box_gap(q), q))
+        .min_by(|a, b| a.0.total_cmp(&b.0))
+        .and_then(|(_, q)| q.exterior().0.first())
     else {
         return f64::INFINITY;
     };

@@ -931,6 +931,8 @@ fn splice_into_rings(
     let mut taken = vec![false; n];
     // Per ring (by position): (cut mm along it, the pieces laid there in order).
     let mut chains: Vec<Vec<(f64, Vec<usize>)>> = vec![Vec::new(); n];
+    // The running lengths of the rings cut, for the second pass.
+    let mut lengths: Vec<Vec<f64>> = vec![Vec::new(); n];
     for (r, (li, ring)) in seq.iter().enumerate() {
         if !is_closed(ring) {
             continue;
@@ -1001,6 +1003,9 @@ fn splice_into_rings(
             }
             chains[r].push((cut, chain));
         }
+        if !chains[r].is_empty() {
+            lengths[r] = cum;
+        }
     }
     if !taken.iter().any(|&t| t) {
         return None;
@@ -1016,7 +1021,7 @@ fn splice_into_rings(
             continue;
         }
         cuts.sort_by(|x, y| x.0.total_cmp(&y.0));
-        let cum = running_lengths(&ring);
+        let cum = std::mem::take(&mut lengths[r]);
         let total = cum[cum.len() - 1];
         let mut from = 0.0;
         for (cut, chain) in cuts {
@@ -1889,11 +1894,7 @@ mod tests {
             overlap,
             ..Default::default()
         };
-        let widths = Widths {
-            loop_width: W,
-            perimeter_width: W,
-            tolerance: W / 2.0,
-        };
+        let widths = bead_widths();
         let step = (1.0 - overlap) * W;
         let uncovered = difference(&area, &below);
         assert!(!uncovered.0.is_empty(), "{name}: no region");
@@ -1972,6 +1973,15 @@ mod tests {
         }
     }
 
+    /// Loops and perimeter of the test bead width `W`, tolerance half of it.
+    fn bead_widths() -> Widths {
+        Widths {
+            loop_width: W,
+            perimeter_width: W,
+            tolerance: W / 2.0,
+        }
+    }
+
     /// The length of `plan`'s loop strands and the straight hops from each to the next.
     fn loops_length_and_hops(plan: &Plan) -> (f64, f64) {
         let loops: Vec<&Strand> = plan
@@ -2017,11 +2027,7 @@ mod tests {
         let below = mp(vec![rect(2.0, 2.0, 12.0, 12.0)]);
         let area = mp(vec![rect(0.0, 0.0, 14.0, 14.0)]);
         let band = difference(&area, &below);
-        let widths = Widths {
-            loop_width: W,
-            perimeter_width: W,
-            tolerance: W / 2.0,
-        };
+        let widths = bead_widths();
         let plan = plan_over(
             band.0[0].clone(),
             &below,
@@ -2064,11 +2070,7 @@ mod tests {
         let area = mp(vec![rect(0.0, 0.0, 20.0, 20.0)]);
         let band = difference(&area, &below);
         let settings = PoaSettings::default();
-        let widths = Widths {
-            loop_width: W,
-            perimeter_width: W,
-            tolerance: W / 2.0,
-        };
+        let widths = bead_widths();
         let plan = plan_over(band.0[0].clone(), &below, &area, widths, &settings);
         assert!(plan.loops >= 1);
         assert_each_strand_held(&plan, &below);
@@ -2131,11 +2133,7 @@ mod tests {
         let below = mp(vec![rect(0.0, 0.0, 10.0, 10.0)]);
         let area = mp(vec![rect(0.0, 0.0, 16.0, 10.0)]);
         let settings = PoaSettings::default();
-        let widths = Widths {
-            loop_width: W,
-            perimeter_width: W,
-            tolerance: W / 2.0,
-        };
+        let widths = bead_widths();
         let poly = difference(&area, &below).0[0].clone();
         let plan_with = |others: &Others| {
             plan(
@@ -2239,11 +2237,7 @@ mod tests {
         let below = mp(vec![rect(0.0, 0.0, 6.0, 6.0)]);
         let area = mp(vec![rect(-4.0, -4.0, 10.0, 10.0)]);
         let poly = difference(&area, &below).0.remove(0);
-        let widths = Widths {
-            loop_width: W,
-            perimeter_width: W,
-            tolerance: W / 2.0,
-        };
+        let widths = bead_widths();
         let settings = PoaSettings::default();
         let plan = plan_over(poly, &below, &area, widths, &settings);
         let rings: Vec<&Polyline> = plan
@@ -2284,11 +2278,7 @@ mod tests {
         );
         let below = mp(vec![rect(0.0, 0.0, 10.0, 30.0)]);
         check("shelf", below.clone(), shelf.clone(), default_overlap());
-        let widths = Widths {
-            loop_width: W,
-            perimeter_width: W,
-            tolerance: W / 2.0,
-        };
+        let widths = bead_widths();
         let zone = difference(&shelf, &below);
         let plan = plan_over(
             zone.0[0].clone(),
@@ -2322,11 +2312,7 @@ mod tests {
     /// perimeter, see [`NEAR_LOOP_AT`]), and the perimeter comes last.
     #[test]
     fn a_gradual_overhang_of_any_width_rests_on_what_is_printed_before() {
-        let widths = Widths {
-            loop_width: W,
-            perimeter_width: W,
-            tolerance: W / 2.0,
-        };
+        let widths = bead_widths();
         type Case = (
             MultiPolygon<f64>,
             MultiPolygon<f64>,
