@@ -1988,3 +1988,75 @@ fn support_on_the_part_stands_across_its_bottom_gap() {
         );
     }
 }
+
+/// A cylinder lying on a narrow block, by PrusaSlicer at 0.15 mm and by Cura at 0.28 mm:
+/// its underside is a run of gradual overhangs whose perimeters move onto the layer
+/// below. The last region of the run (the slicer's perimeter a little past the moved one
+/// below, which still holds it) was reported "no loop fits", as if left in air: now it says
+/// it rests as sliced, and it does.
+#[test]
+fn a_lying_cylinder_s_underside_is_held_and_each_region_left_says_why() {
+    let slices = by_both(
+        "lying_cylinder",
+        &["--layer-height", "0.15"],
+        (
+            "anycubic_i3_mega",
+            &["layer_height=0.28", "infill_pattern=cubic"],
+        ),
+        ["PrusaSlicer", "Cura"],
+    );
+    for (slicer, d) in &slices {
+        let what = format!("lying cylinder by {slicer}");
+        let (new, rep) = rewrite(d, BridgeMode::Auto);
+        let (before, after) = (check(d), check(&new));
+        assert!(rep.gradual > 4, "{what}: {} gradual regions", rep.gradual);
+        for s in &rep.skipped {
+            use printonair::emit::{HELD_AS_SLICED, PERIMETER_HELD};
+            assert!(
+                [HELD_AS_SLICED, PERIMETER_HELD].contains(&s.reason.as_str()),
+                "{what}: region {} on layer {}: {}",
+                s.region,
+                s.layer,
+                s.reason
+            );
+            let (b, a) = (&before.layers[s.layer - 1], &after.layers[s.layer - 1]);
+            assert!(
+                a.in_air_mm <= b.in_air_mm + 0.05 && a.in_air_mm < 0.5,
+                "{what}: layer {} left as sliced has {:.1} mm in air ({:.1} before)",
+                s.layer,
+                a.in_air_mm,
+                b.in_air_mm
+            );
+        }
+        // The underside's run, from its first region up: held.
+        let first = rep
+            .rewrites
+            .iter()
+            .map(|r| r.layer)
+            .min()
+            .expect("rewrites");
+        let last = rep
+            .rewrites
+            .iter()
+            .map(|r| r.layer)
+            .max()
+            .expect("rewrites");
+        let air = |c: &CheckReport| -> f64 {
+            c.layers[first - 1..last].iter().map(|l| l.in_air_mm).sum()
+        };
+        assert!(
+            air(&after) <= 0.1 * air(&before),
+            "{what}: layers {first}-{last}: {:.1} mm in air, {:.1} before",
+            air(&after),
+            air(&before)
+        );
+        note(&format!(
+            "{what}: {} regions ({} gradual), layers {first}-{last} in air {:.1} -> {:.1} mm, {} left as sliced",
+            rep.regions_found,
+            rep.gradual,
+            air(&before),
+            air(&after),
+            rep.skipped.len()
+        ));
+    }
+}
