@@ -229,6 +229,52 @@ pub fn points_box(points: &[[f64; 2]]) -> Option<geo::Rect<f64>> {
     ))
 }
 
+/// Offsets of one area by growing distances, each as [`offset`] makes it (round joins).
+///
+/// Up to [`Growth::STAGE`] the area is offset directly; farther, from the area already
+/// grown by whole stages (kept, one per stage), by what remains. A round offset is a
+/// Minkowski sum with a disc, so growing by a then b is growing by a + b, and the grown area
+/// is smooth: its concavities narrower than a stage are filled. Offsetting a jagged outline
+/// (800 points) by 80 mm directly made every vertex's arc cross every other's: 0.4 ms per mm
+/// of distance, a thin region of a damaged file planned for a minute.
+pub struct Growth<'a> {
+    source: &'a MultiPolygon<f64>,
+    stages: Vec<MultiPolygon<f64>>,
+}
+
+impl<'a> Growth<'a> {
+    /// Distance (mm) of each stage.
+    pub const STAGE: f64 = 2.0;
+    /// Simplification of each stage (mm): far under the offsets' own arc tolerance, so that
+    /// the points of the stages' arcs do not pile up from one stage to the next.
+    const STAGE_SIMPLIFY: f64 = 1e-4;
+
+    pub fn new(source: &'a MultiPolygon<f64>) -> Growth<'a> {
+        Growth {
+            source,
+            stages: Vec::new(),
+        }
+    }
+
+    /// The source grown by `delta` mm.
+    pub fn at(&mut self, delta: f64) -> MultiPolygon<f64> {
+        if delta <= Self::STAGE || !delta.is_finite() {
+            return offset(self.source, delta);
+        }
+        // Whole stages below `delta`, at least one, and at most what a plate's extent needs.
+        let n = ((delta / Self::STAGE).ceil() as usize - 1).clamp(1, 10_000);
+        while self.stages.len() < n {
+            let grown = match self.stages.last() {
+                Some(last) => offset(last, Self::STAGE),
+                None => offset(self.source, Self::STAGE),
+            };
+            self.stages
+                .push(geo::Simplify::simplify(&grown, Self::STAGE_SIMPLIFY));
+        }
+        offset(&self.stages[n - 1], delta - n as f64 * Self::STAGE)
+    }
+}
+
 /// Grows `front` by `step` and cuts it back to `allowed`, with Clipper's exact integer
 /// arithmetic and a light simplification, so that repeating it keeps the front clean and its
 /// vertex count bounded (a float boolean engine snaps to its own grid and adds jitter).
@@ -475,6 +521,39 @@ mod tests {
     use super::testutil::*;
     use super::*;
     use geo::Area;
+
+    /// A saw-toothed outline (the teeth 0.3 mm deep, 0.2 mm apart, as a damaged file's
+    /// layer may print) grown far: by stages, the same area as one offset to within the
+    /// offsets' arc tolerance along its outline, near and far.
+    #[test]
+    fn growing_by_stages_gives_the_area_one_offset_gives() {
+        use geo::{coord, LineString, Polygon};
+        let mut pts = Vec::new();
+        for i in 0..=100 {
+            let x = i as f64 * 0.2;
+            pts.push(coord! {x: x, y: if i % 2 == 0 { 0.0 } else { 0.3 }});
+        }
+        pts.push(coord! {x: 20.0, y: 5.0});
+        pts.push(coord! {x: 0.0, y: 5.0});
+        pts.push(coord! {x: 0.0, y: 0.0});
+        let saw = mp(vec![Polygon::new(LineString::new(pts), Vec::new())]);
+        let mut growth = Growth::new(&saw);
+        for d in [0.5, 2.0, 2.1, 4.0, 7.3, 30.0] {
+            let staged = growth.at(d);
+            let direct = offset(&saw, d);
+            let outline = 2.0 * (20.0 + 5.0 + 4.0 * d);
+            let apart = difference(&staged, &direct).unsigned_area()
+                + difference(&direct, &staged).unsigned_area();
+            assert!(
+                apart <= 2.0 * ARC_TOLERANCE * outline,
+                "grown by {d}: {apart:.4} mm2 apart ({:.1} vs {:.1})",
+                staged.unsigned_area(),
+                direct.unsigned_area()
+            );
+        }
+        // One stage per 2 mm, the last short of 30 mm.
+        assert_eq!(growth.stages.len(), 14);
+    }
 
     #[test]
     fn cells_by_the_inverse_never_go_backwards() {

@@ -396,11 +396,12 @@ pub(super) fn plan_in(
         let mut strands = Vec::new();
         let mut loops = 0;
         let mut held = 0;
+        let mut growth = crate::geometry::Growth::new(below_loc);
         for k in 1..=(extent.min(2000.0) / step).ceil() as usize + 2 {
             let ring = if k == 1 {
                 rings(&front)
             } else {
-                rings(&offset(below_loc, k as f64 * step - w / 2.0))
+                rings(&growth.at(k as f64 * step - w / 2.0))
             };
             let mut pieces = clip_lines(&ring, &near_room, true);
             if pieces.is_empty() {
@@ -434,10 +435,7 @@ pub(super) fn plan_in(
             if inside_full >= 0.5 * length(&pieces) {
                 strands.extend(shape(w).strands(pieces, 2.0 * w, &mut at));
             } else {
-                let half_ring = rings(&offset(
-                    below_loc,
-                    k as f64 * step - w / 2.0 - HALF_BACK * w,
-                ));
+                let half_ring = rings(&growth.at(k as f64 * step - w / 2.0 - HALF_BACK * w));
                 let half = if needed {
                     clip_lines(&half_ring, &under, true)
                 } else {
