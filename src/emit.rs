@@ -2256,6 +2256,7 @@ impl<'a> PoaPass<'a> {
     /// a region are planned with it where `judged` (the layer as sliced, or as rewritten
     /// without them) leaves them in air; a probe only says whether any would be (`None`: none;
     /// `Some` and empty: some), planning nothing ([`anchor_strips`]). `None` only for a probe.
+    /// Strips asked for and none needed: `Some` and empty, planning nothing.
     fn plan(
         &mut self,
         d: &crate::geometry::Detected,
@@ -2483,6 +2484,7 @@ impl<'a> PoaPass<'a> {
                 chosen.iter().map(|(_, r)| *r).zip(others.iter()).collect();
             crate::poa::copy_sources(&plain, below, area, widths)
         });
+        let asked = strips.is_some();
         let (judged, probe) = strips.unwrap_or((layer, false));
         let strips = under
             .zip(sources.as_ref())
@@ -2499,6 +2501,11 @@ impl<'a> PoaPass<'a> {
             .unwrap_or_else(|| vec![None; chosen.len()]);
         if probe {
             return strips.iter().any(|s| s.is_some()).then(Vec::new);
+        }
+        // Strips asked for and none needed: the plan would be the plain one, which the caller
+        // has made already (a plate of nine mushrooms planned its layer three times).
+        if asked && strips.iter().all(|s| s.is_none()) {
+            return Some(Vec::new());
         }
         let (extended, below_strips, area_strips);
         type Jobs<'j> = Vec<(&'j crate::geometry::Region, &'j crate::poa::Others)>;
