@@ -344,6 +344,24 @@ pub(super) fn plan_in(
     // convex corners rounded by half a width.
     let round = we / 2.0;
     let mut perimeter_area = offset(&offset(&area_loc, -(we / 2.0 + inset + round)), round);
+    // Features the rounding erases whole are kept, sharp as the slicer drew them: a gear's
+    // teeth narrower than two perimeters (0.8 mm nozzle, 1.6 mm teeth) were left out of the
+    // layer, and the layer above bridged every tooth (1 -> 38 mm bridged). A corner's trim
+    // lies within a width of the rounded outline; a feature reaches farther.
+    let sharp = offset(&area_loc, -(we / 2.0 + inset));
+    let lost = difference(&sharp, &perimeter_area);
+    if lost.unsigned_area() > 0.0 {
+        let far = difference(&lost, &offset(&perimeter_area, we));
+        if !far.0.is_empty() {
+            use geo::Intersects;
+            let features: Vec<geo::Polygon<f64>> = lost
+                .0
+                .into_iter()
+                .filter(|p| far.0.iter().any(|f| p.intersects(f)))
+                .collect();
+            perimeter_area = union(&perimeter_area, &MultiPolygon::new(features));
+        }
+    }
     let front = offset(below_loc, step - w / 2.0);
     if thin {
         // Where the perimeter is within an eighth of a width of biting like loop 1, it is
@@ -2290,6 +2308,67 @@ mod tests {
             travel <= 0.10 * length,
             "travel {travel:.1} mm for {length:.1} mm of loops"
         );
+    }
+
+    #[test]
+    fn a_gear_s_teeth_narrower_than_two_perimeters_keep_their_perimeter() {
+        // A 26 mm gear over an 8 mm stem, 24 teeth 1.6 mm wide standing 1.5 mm out, with a
+        // 0.8 mm nozzle's 0.9 mm beads: rounded by half a width, the perimeter lost every
+        // tooth (the layer above then bridged them all). Each tooth keeps its perimeter,
+        // out to the tip less the bead's half width and the inset.
+        let w = 0.9;
+        let widths = Widths {
+            loop_width: w,
+            perimeter_width: w,
+            tolerance: w / 2.0,
+        };
+        let mut gear = mp(vec![disc(13.0, 96)]);
+        let tip = 14.5;
+        for i in 0..24 {
+            let t = std::f64::consts::TAU * i as f64 / 24.0;
+            let (c, s) = (t.cos(), t.sin());
+            let at = |r: f64, q: f64| (10.0 + r * c - q * s, 10.0 + r * s + q * c);
+            let tooth: Polygon<f64> = Polygon::new(
+                vec![at(12.0, -0.8), at(tip, -0.8), at(tip, 0.8), at(12.0, 0.8)].into(),
+                vec![],
+            );
+            gear = union(&gear, &mp(vec![tooth]));
+        }
+        let below = mp(vec![disc(4.0, 48)]);
+        let band = difference(&gear, &below);
+        let settings = PoaSettings::default();
+        let plan = plan_over(band.0[0].clone(), &below, &gear, widths, &settings);
+        let perimeter: Vec<&Polyline> = plan
+            .strands
+            .iter()
+            .filter(|s| s.kind == StrandKind::Perimeter)
+            .map(|s| &s.points)
+            .collect();
+        assert!(!perimeter.is_empty());
+        let reach = tip - w / 2.0 - settings.perimeter_inset;
+        for i in 0..24 {
+            let t = std::f64::consts::TAU * i as f64 / 24.0;
+            let p = [10.0 + reach * t.cos(), 10.0 + reach * t.sin()];
+            let d = dist_to(p, &perimeter);
+            assert!(
+                d < 0.3 * w,
+                "tooth {i}: its tip {d:.2} mm from the perimeter"
+            );
+        }
+        // A square corner is still rounded: nothing of this is a feature.
+        let square = mp(vec![rect(0.0, 0.0, 20.0, 20.0)]);
+        let post = mp(vec![rect(6.0, 6.0, 14.0, 14.0)]);
+        let ring = difference(&square, &post);
+        let plan = plan_over(ring.0[0].clone(), &post, &square, widths, &settings);
+        let perimeter: Vec<&Polyline> = plan
+            .strands
+            .iter()
+            .filter(|s| s.kind == StrandKind::Perimeter)
+            .map(|s| &s.points)
+            .collect();
+        let corner = w / 2.0 + settings.perimeter_inset;
+        let d = dist_to([corner, corner], &perimeter);
+        assert!(d > 0.1 * w, "a square's corner kept sharp: {d:.3} mm");
     }
 
     /// A regular polygon of `n` corners round (10, 10).
