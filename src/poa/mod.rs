@@ -2310,6 +2310,15 @@ mod tests {
         );
     }
 
+    /// The centrelines of a plan's perimeter strands.
+    fn perimeter_lines(plan: &Plan) -> Vec<&Polyline> {
+        plan.strands
+            .iter()
+            .filter(|s| s.kind == StrandKind::Perimeter)
+            .map(|s| &s.points)
+            .collect()
+    }
+
     #[test]
     fn a_gear_s_teeth_narrower_than_two_perimeters_keep_their_perimeter() {
         // A 26 mm gear over an 8 mm stem, 24 teeth 1.6 mm wide standing 1.5 mm out, with a
@@ -2338,12 +2347,7 @@ mod tests {
         let band = difference(&gear, &below);
         let settings = PoaSettings::default();
         let plan = plan_over(band.0[0].clone(), &below, &gear, widths, &settings);
-        let perimeter: Vec<&Polyline> = plan
-            .strands
-            .iter()
-            .filter(|s| s.kind == StrandKind::Perimeter)
-            .map(|s| &s.points)
-            .collect();
+        let perimeter = perimeter_lines(&plan);
         assert!(!perimeter.is_empty());
         let reach = tip - w / 2.0 - settings.perimeter_inset;
         for i in 0..24 {
@@ -2360,12 +2364,7 @@ mod tests {
         let post = mp(vec![rect(6.0, 6.0, 14.0, 14.0)]);
         let ring = difference(&square, &post);
         let plan = plan_over(ring.0[0].clone(), &post, &square, widths, &settings);
-        let perimeter: Vec<&Polyline> = plan
-            .strands
-            .iter()
-            .filter(|s| s.kind == StrandKind::Perimeter)
-            .map(|s| &s.points)
-            .collect();
+        let perimeter = perimeter_lines(&plan);
         let corner = w / 2.0 + settings.perimeter_inset;
         let d = dist_to([corner, corner], &perimeter);
         assert!(d > 0.1 * w, "a square's corner kept sharp: {d:.3} mm");
