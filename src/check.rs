@@ -117,6 +117,10 @@ fn floor_i64(v: f64) -> i64 {
 const MAX_CELLS: f64 = 250_000.0;
 
 impl Grid {
+    /// Distance (mm) from the grid beyond which no piece of a long segment is entered: more
+    /// than a bead's reach (10 mm) and an anchor's (four beads) from any query.
+    const FAR: f64 = 50.0;
+
     fn new(cell: f64, min: [f64; 2], max: [f64; 2]) -> Grid {
         // Beads are at most 10 mm wide (see `seg_width`): a margin of half that keeps every
         // padded segment of the box inside the grid.
@@ -181,7 +185,25 @@ impl Grid {
                     s.a[1] + t * (s.b[1] - s.a[1]),
                 ]
             };
-            for k in 0..n {
+            // Only the pieces near the grid: queries lie in it, and reach at most a bead's
+            // width (10 mm) and an anchor's four out of it. A damaged file's metre-long move
+            // across a small window put a million pieces in `outside`, which every query
+            // scans (a minute for one region's check). The pieces kept are cut as they would
+            // be from the whole segment.
+            let far = Self::FAR;
+            let reach = (
+                [self.origin[0] - far, self.origin[1] - far],
+                [
+                    self.origin[0] + self.nx as f64 * self.cell + far,
+                    self.origin[1] + self.ny as f64 * self.cell + far,
+                ],
+            );
+            let Some((t0, t1)) = clip_to_box(s.a, s.b, reach) else {
+                return;
+            };
+            let first = ((t0 * n as f64).floor() as usize).min(n - 1);
+            let last = ((t1 * n as f64).ceil() as usize).clamp(first + 1, n);
+            for k in first..last {
                 self.insert_piece(Seg {
                     a: at(k as f64 / n as f64),
                     b: at((k + 1) as f64 / n as f64),
@@ -1125,6 +1147,38 @@ fn classify(samples: &mut [(f64, Sample, bool)], opts: &CheckOptions, out: &mut 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_segment_far_longer_than_the_grid_enters_only_its_pieces_near_it() {
+        // A 10 mm grid and a 200 m move across it (a damaged file's): the pieces beyond
+        // reach of any query are not entered (they went to `outside`, scanned by every
+        // query), and what the grid answers near it is the same.
+        let mut grid = Grid::new(1.0, [0.0, 0.0], [10.0, 10.0]);
+        grid.insert(Seg {
+            a: [-1e5, 5.0],
+            b: [1e5, 5.0],
+            half: 0.2,
+        });
+        let span = 10.0 + 2.0 * 6.0 + 2.0 * Grid::FAR;
+        assert!(
+            (grid.segs.len() as f64) <= span / grid.cell + 2.0,
+            "{} pieces",
+            grid.segs.len()
+        );
+        assert!(grid.outside.len() <= 2 * (Grid::FAR / grid.cell) as usize + 2);
+        let mut last = None;
+        for x in [-5.0, 0.0, 5.0, 9.9, 15.0] {
+            assert!(grid.near([x, 5.3], 0.15, &mut last), "x {x}");
+            assert!(!grid.near([x, 6.0], 0.1, &mut last), "x {x}");
+        }
+        // A segment wholly beyond reach enters nothing.
+        grid.insert(Seg {
+            a: [-1e5, 500.0],
+            b: [1e5, 500.0],
+            half: 0.2,
+        });
+        assert!((grid.segs.len() as f64) <= span / grid.cell + 2.0);
+    }
 
     #[test]
     fn floor_of_an_integer_cast_is_the_floor() {
