@@ -514,6 +514,17 @@ pub(crate) mod testutil {
     pub fn mp(p: Vec<Polygon<f64>>) -> MultiPolygon<f64> {
         MultiPolygon::new(p)
     }
+
+    /// A fixed sequence of numbers in [0, 1) (a linear congruential generator): tests that
+    /// draw many cases draw the same ones every run.
+    pub fn lcg(mut seed: u64) -> impl FnMut() -> f64 {
+        move || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 33) as f64 / (1u64 << 31) as f64
+        }
+    }
 }
 
 #[cfg(test)]

@@ -1795,13 +1795,7 @@ mod tests {
     fn few_strands_are_laid_in_the_order_of_least_travel_keeping_what_leans_on_what() {
         // Random short strands of two loops and a perimeter in a 10 mm square (a fixed
         // linear congruential sequence), as a greedy order might give them.
-        let mut seed = 12345u64;
-        let mut rnd = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 33) as f64 / (1u64 << 31) as f64
-        };
+        let mut rnd = crate::geometry::testutil::lcg(12345);
         for case in 0..40 {
             let n = 3 + case % 4;
             let mut v: Vec<Strand> = (0..n)
