@@ -2246,8 +2246,18 @@ impl<'a> PoaPass<'a> {
             [b.min().x - w, b.min().y - w],
             [b.max().x + w, b.max().y + w],
         );
-        crate::check::samples_inside(&below, layer, self.motion.filament_area, &[window])
+        // The strands near it judged whole, as `poa check` judges them (a run leaving the
+        // window is not taken as anchored at its edge).
+        crate::check::check_layer_within(&below, layer, self.motion.filament_area, window)
+            .samples
             .iter()
+            .filter(|s| {
+                let p = s.point;
+                p[0] >= window.0[0]
+                    && p[0] <= window.1[0]
+                    && p[1] >= window.0[1]
+                    && p[1] <= window.1[1]
+            })
             .all(|s| s.support != crate::check::Support::InAir)
     }
 
