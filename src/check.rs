@@ -102,6 +102,8 @@ struct Grid {
     /// `max_half` to 5 mm, and every query then read the strands of a hundred cells: a
     /// check of 30 s, 2.5 s with the far cells passed over).
     cell_half: Vec<f32>,
+    /// Whether every query lies in the box ([`Grid::clamped`]).
+    clamped: bool,
 }
 
 /// No entry.
@@ -148,7 +150,15 @@ impl Grid {
             outside: Vec::new(),
             max_half: 0.0,
             cell_half: vec![0.0; (nx * ny) as usize],
+            clamped: false,
         }
+    }
+
+    /// The grid for queries that all lie in its box (a check's samples): segments out of it
+    /// are entered in its edge cells instead of the list every query scans.
+    fn clamped(mut self) -> Grid {
+        self.clamped = true;
+        self
     }
 
     fn key(&self, x: f64, y: f64) -> (i64, i64) {
@@ -230,7 +240,29 @@ impl Grid {
         let (x0, y0) = self.key(s.a[0].min(s.b[0]), s.a[1].min(s.b[1]));
         let (x1, y1) = self.key(s.a[0].max(s.b[0]), s.a[1].max(s.b[1]));
         self.max_half = self.max_half.max(s.half);
-        if x0 < 0 || y0 < 0 || x1 >= self.nx || y1 >= self.ny || !(x0 <= x1 && y0 <= y1) {
+        let inside = x0 >= 0 && y0 >= 0 && x1 < self.nx && y1 < self.ny;
+        let (x0, y0, x1, y1) = if !inside && self.clamped && x0 <= x1 && y0 <= y1 {
+            // Queries lie in the grid: a piece out of it is entered in the cells of its box
+            // moved into the grid, whose nearest point to any query is no farther than the
+            // piece's (the projection onto a box brings no point farther from one inside
+            // it). Pieces beyond any query's reach are not entered at all. (A long strand of
+            // the layer below running just outside a narrow window put thousands of pieces in
+            // `outside`, which every query scans.)
+            let far = (Self::FAR / self.cell).ceil() as i64;
+            if x1 < -far || y1 < -far || x0 >= self.nx + far || y0 >= self.ny + far {
+                self.segs.push(s);
+                return;
+            }
+            (
+                x0.clamp(0, self.nx - 1),
+                y0.clamp(0, self.ny - 1),
+                x1.clamp(0, self.nx - 1),
+                y1.clamp(0, self.ny - 1),
+            )
+        } else {
+            (x0, y0, x1, y1)
+        };
+        if !(self.clamped || inside) || !(x0 <= x1 && y0 <= y1) {
             self.outside.push(id);
         } else {
             for y in y0..=y1 {
@@ -919,9 +951,9 @@ fn check_within(
         }
         None => bounds(below.iter().copied().chain(std::iter::once(layer))),
     };
-    let mut grid = Grid::new(1.0, min, max);
+    let mut grid = Grid::new(1.0, min, max).clamped();
     // What the layer's support material stands on across its bottom contact gap.
-    let mut gap = Grid::new(1.0, min, max);
+    let mut gap = Grid::new(1.0, min, max).clamped();
     let mut gapped = false;
     let on_bed = layer.on_bed();
     let in_window =
@@ -947,7 +979,7 @@ fn check_within(
     let tall_at = (!deeper.is_empty())
         .then(|| tall_infill_width(layer, filament_area))
         .flatten();
-    let mut deep = Grid::new(1.0, min, max);
+    let mut deep = Grid::new(1.0, min, max).clamped();
     if tall_at.is_some() {
         for s in deeper
             .iter()
@@ -1190,11 +1222,22 @@ mod tests {
             all.push(s);
             grid.insert(s);
         }
+        assert_answers_as_a_scan(&grid, &all, || {
+            ([next() * 40.0, next() * 40.0], 0.05 + 0.3 * next())
+        });
+    }
+
+    /// Asks `grid` 20 000 queries (a point and a reach) and compares each answer with a scan
+    /// of all the segments entered; both answers come up often.
+    fn assert_answers_as_a_scan(
+        grid: &Grid,
+        all: &[Seg],
+        mut query: impl FnMut() -> ([f64; 2], f64),
+    ) {
         let mut last = None;
         let (mut yes, mut no) = (0, 0);
         for _ in 0..20_000 {
-            let p = [next() * 40.0, next() * 40.0];
-            let reach = 0.05 + 0.3 * next();
+            let (p, reach) = query();
             let scan = all.iter().any(|s| s.distance(p) - s.half <= reach);
             assert_eq!(grid.near(p, reach, &mut last), scan, "{p:?} reach {reach}");
             if scan {
@@ -1204,6 +1247,54 @@ mod tests {
             }
         }
         assert!(yes > 1000 && no > 1000, "{yes} near, {no} not");
+    }
+
+    #[test]
+    fn a_clamped_grid_answers_as_a_scan_with_strands_just_outside_it() {
+        // A window 2 mm high over long strands of the layer below running beside it, above
+        // and below, crossing it and far away: out of the box they go to its edge cells (not
+        // to the list every query scans), and every query in the box gets the answer a scan
+        // of all segments gives.
+        let mut next = crate::geometry::testutil::lcg(777);
+        let (lo, hi) = ([0.0, 10.0], [30.0, 12.0]);
+        let mut grid = Grid::new(1.0, lo, hi).clamped();
+        let mut all = Vec::new();
+        for k in 0..300 {
+            let x = next() * 30.0;
+            let side = if next() < 0.5 { -1.0 } else { 1.0 };
+            let (a, b, half) = match k % 10 {
+                // Long, just outside the grid's box (the window and a margin of 6 mm),
+                // above or below it.
+                0..=3 => {
+                    let y = 11.0 + side * (7.02 + 0.6 * next());
+                    ([x - 500.0, y], [x + 500.0, y + 0.3 * (next() - 0.5)], 0.2)
+                }
+                // Wide and far.
+                4 => {
+                    let y = 11.0 + side * (6.0 + 20.0 * next());
+                    ([x, y], [x + 3.0, y + 1.0], 4.0)
+                }
+                // Short, anywhere near.
+                _ => {
+                    let y = 11.0 + (next() - 0.5) * 16.0;
+                    (
+                        [x, y],
+                        [x + (next() - 0.5) * 3.0, y + (next() - 0.5) * 3.0],
+                        0.2,
+                    )
+                }
+            };
+            let s = Seg { a, b, half };
+            all.push(s);
+            grid.insert(s);
+        }
+        assert!(grid.outside.is_empty(), "{} outside", grid.outside.len());
+        // Anywhere in the grid's box.
+        let (x0, y0) = (grid.origin[0], grid.origin[1]);
+        let (w, h) = (grid.nx as f64 * grid.cell, grid.ny as f64 * grid.cell);
+        assert_answers_as_a_scan(&grid, &all, || {
+            ([x0 + next() * w, y0 + next() * h], 0.05 + 0.3 * next())
+        });
     }
 
     #[test]
