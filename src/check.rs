@@ -833,7 +833,7 @@ fn clip_to_box(a: [f64; 2], b: [f64; 2], w: ([f64; 2], [f64; 2])) -> Option<(f64
 }
 
 /// Whether `p` lies in the box `w` (min, max corners).
-fn inside_box(p: [f64; 2], w: ([f64; 2], [f64; 2])) -> bool {
+pub(crate) fn inside_box(p: [f64; 2], w: ([f64; 2], [f64; 2])) -> bool {
     p[0] >= w.0[0] && p[0] <= w.1[0] && p[1] >= w.0[1] && p[1] <= w.1[1]
 }
 

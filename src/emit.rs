@@ -2251,13 +2251,7 @@ impl<'a> PoaPass<'a> {
         crate::check::check_layer_within(&below, layer, self.motion.filament_area, window)
             .samples
             .iter()
-            .filter(|s| {
-                let p = s.point;
-                p[0] >= window.0[0]
-                    && p[0] <= window.1[0]
-                    && p[1] >= window.0[1]
-                    && p[1] <= window.1[1]
-            })
+            .filter(|s| crate::check::inside_box(s.point, window))
             .all(|s| s.support != crate::check::Support::InAir)
     }
 
