@@ -380,6 +380,53 @@ pub fn nearest_on_segment(p: [f64; 2], a: [f64; 2], b: [f64; 2]) -> (f64, [f64; 
     (t, [a[0] + t * dx, a[1] + t * dy])
 }
 
+/// Whether segments `a`-`b` and `c`-`d` come within `gap` of each other (crossing counts).
+pub fn segments_within(a: [f64; 2], b: [f64; 2], c: [f64; 2], d: [f64; 2], gap: f64) -> bool {
+    let cross = |o: [f64; 2], p: [f64; 2], q: [f64; 2]| {
+        (p[0] - o[0]) * (q[1] - o[1]) - (p[1] - o[1]) * (q[0] - o[0])
+    };
+    let (d1, d2) = (cross(a, b, c), cross(a, b, d));
+    let (d3, d4) = (cross(c, d, a), cross(c, d, b));
+    if d1 * d2 < 0.0 && d3 * d4 < 0.0 {
+        return true;
+    }
+    let g2 = gap * gap;
+    let near = |p: [f64; 2], s: [f64; 2], e: [f64; 2]| {
+        let q = nearest_on_segment(p, s, e).1;
+        (q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2) <= g2
+    };
+    near(a, c, d) || near(b, c, d) || near(c, a, b) || near(d, a, b)
+}
+
+/// Whether polylines `a` and `b` come within `gap` of each other anywhere. Segment pairs
+/// whose boxes lie farther apart are passed over.
+pub fn polylines_within(a: &[[f64; 2]], b: &[[f64; 2]], gap: f64) -> bool {
+    let bb = match points_box(b) {
+        Some(r) => r,
+        None => return false,
+    };
+    let seg_box = |p: [f64; 2], q: [f64; 2]| {
+        geo::Rect::new(
+            geo::coord! { x: p[0], y: p[1] },
+            geo::coord! { x: q[0], y: q[1] },
+        )
+    };
+    for s in a.windows(2) {
+        let sb = seg_box(s[0], s[1]);
+        if !boxes_within(Some(&sb), Some(&bb), gap) {
+            continue;
+        }
+        for t in b.windows(2) {
+            if boxes_within(Some(&sb), Some(&seg_box(t[0], t[1])), gap)
+                && segments_within(s[0], s[1], t[0], t[1], gap)
+            {
+                return true;
+            }
+        }
+    }
+    false
+}
+
 /// The parts of `lines` inside `area` (or outside it, with `inside` false).
 pub fn clip_lines(lines: &[Polyline], area: &MultiPolygon<f64>, inside: bool) -> Vec<Polyline> {
     use geo::{BooleanOps, LineString, MultiLineString};

@@ -1083,9 +1083,358 @@ fn assemble(
         points: p,
         width: w,
     }));
+    let early = interleave(&strands, &contour, &perimeter, (w, we), prefix.len());
     strands.extend(finish_order(contour, perimeter, w, we, &mut at));
     arrange(&mut strands, start);
-    strands
+    match early {
+        Some(mut e) => {
+            arrange(&mut e, start);
+            if hop_travel(&e) < hop_travel(&strands) - 1e-9 {
+                e
+            } else {
+                strands
+            }
+        }
+        None => strands,
+    }
+}
+
+/// Farthest (in widths) the nozzle goes out of its way, from where it is between or along
+/// strands of loops and back, to lay a piece of the contour or the moved perimeter there
+/// ([`interleave`]).
+const FINISH_DETOUR: f64 = 6.0;
+
+/// How far (in widths of the strand cut) past the bead of a strand laid before a cut in a
+/// loop strand may lie ([`interleave`]): within the deposition check's own reach for
+/// support (a quarter of a width), less a margin.
+const HELD_CUT: f64 = 0.15;
+
+/// Most (loop point, finishing piece point) pairs [`interleave`] weighs (its distance tests
+/// run over such pairs); past it the finishing pieces all follow the loops. A plate pierced
+/// by 16 holes: 13.5 million, 10 ms.
+const INTERLEAVE_WORK: usize = 50_000_000;
+
+/// The last point along `strand` (mm from its start, running lengths `cum`) within `reach`
+/// of `piece`, sampled every `step` mm; `None` when none is.
+fn last_near(
+    strand: &Polyline,
+    cum: &[f64],
+    piece: &Polyline,
+    reach: f64,
+    step: f64,
+) -> Option<f64> {
+    let total = *cum.last()?;
+    let near = |q: [f64; 2]| {
+        piece.windows(2).any(|s| {
+            let c = crate::geometry::nearest_on_segment(q, s[0], s[1]).1;
+            dist2(c, q) <= reach * reach
+        })
+    };
+    let j = (0..strand.len().saturating_sub(1))
+        .rev()
+        .find(|&j| crate::geometry::polylines_within(&strand[j..j + 2], piece, reach))?;
+    let (t0, t1) = (cum[j], cum[j + 1]);
+    let n = ((t1 - t0) / step).ceil().max(1.0) as usize;
+    (0..=n)
+        .rev()
+        .map(|m| t0 + (t1 - t0) * m as f64 / n as f64)
+        .find(|&t| near(point_along(strand, cum, t)))
+        .or(Some(t0))
+        .filter(|&t| t <= total)
+}
+
+/// `pieces` with those that meet end to end (within `gap`) joined into one: laid apart, the
+/// first of two would end over air where the second, laid after it, held its end (a
+/// perimeter cut in two along a shelf's edge: 1.1 mm in air once its halves were laid at
+/// different times).
+fn chained(pieces: &[Polyline], gap: f64) -> Vec<Polyline> {
+    let mut out: Vec<Polyline> = pieces.to_vec();
+    let g2 = gap * gap;
+    'join: loop {
+        for i in 0..out.len() {
+            if out[i].len() < 2 || is_closed(&out[i]) {
+                continue;
+            }
+            for j in i + 1..out.len() {
+                if out[j].len() < 2 || is_closed(&out[j]) {
+                    continue;
+                }
+                let (a0, a1) = (out[i][0], out[i][out[i].len() - 1]);
+                let (b0, b1) = (out[j][0], out[j][out[j].len() - 1]);
+                let mut b = out.swap_remove(j);
+                let a = &mut out[i];
+                if dist2(a1, b0) <= g2 {
+                } else if dist2(a1, b1) <= g2 {
+                    b.reverse();
+                } else if dist2(a0, b1) <= g2 {
+                    a.reverse();
+                    b.reverse();
+                } else if dist2(a0, b0) <= g2 {
+                    a.reverse();
+                } else {
+                    out.push(b);
+                    let last = out.len() - 1;
+                    out.swap(j, last);
+                    continue;
+                }
+                a.extend(b);
+                continue 'join;
+            }
+        }
+        return out;
+    }
+}
+
+/// `loops` (in print order) with the pieces of the contour and the moved perimeter laid
+/// among them: each piece as soon as every strand it leans on is printed (the loops within
+/// a width of either bead, and for a perimeter piece the contour beside it, as in
+/// [`finish_order`]) and the nozzle passes within [`FINISH_DETOUR`] widths of it, there and
+/// back: between two strands, or along the last strand it leans on, once that strand is
+/// past it (the strand is cut there and resumed after). The rest follow the loops, as
+/// [`finish_order`] lays them. Nothing printed after a piece comes within reach of it.
+/// A shelf pierced by holes grew its loops past hole after hole, then toured every hole
+/// again for its contour and perimeter (16 holes: 11.7 % of the loops' length in travel).
+/// `None` when the plan is too big to weigh ([`INTERLEAVE_WORK`]) or no piece moves.
+fn interleave(
+    loops: &[Strand],
+    contour: &[Polyline],
+    perimeter: &[Polyline],
+    (w, we): (f64, f64),
+    first: usize,
+) -> Option<Vec<Strand>> {
+    let reach = w + we;
+    let (contour, perimeter) = (chained(contour, w / 2.0), chained(perimeter, we / 2.0));
+    let pieces: Vec<(StrandKind, &Polyline, f64)> = contour
+        .iter()
+        .filter(|p| polyline_length(p) >= w)
+        .map(|p| (StrandKind::Contour, p, w))
+        .chain(
+            perimeter
+                .iter()
+                .filter(|p| polyline_length(p) >= we)
+                .map(|p| (StrandKind::Perimeter, p, we)),
+        )
+        .collect();
+    let loop_points: usize = loops.iter().map(|s| s.points.len()).sum();
+    let piece_points: usize = pieces.iter().map(|p| p.1.len()).sum();
+    if pieces.is_empty()
+        || loops.len() <= first
+        || loop_points.saturating_mul(piece_points) > INTERLEAVE_WORK
+        || loops.iter().any(|s| s.points.len() < 2)
+    {
+        return None;
+    }
+    let boxes: Vec<Option<geo::Rect<f64>>> = pieces
+        .iter()
+        .map(|p| crate::geometry::points_box(p.1))
+        .collect();
+    let loop_boxes: Vec<Option<geo::Rect<f64>>> = loops
+        .iter()
+        .map(|s| crate::geometry::points_box(&s.points))
+        .collect();
+    let near_loop = |i: usize, k: usize| {
+        crate::geometry::boxes_within(loop_boxes[i].as_ref(), boxes[k].as_ref(), reach)
+            && crate::geometry::polylines_within(&loops[i].points, pieces[k].1, reach)
+    };
+    // ready[k]: loop strands laid before piece k may be (its last near one, plus one).
+    let ready: Vec<usize> = (0..pieces.len())
+        .map(|k| {
+            (0..loops.len())
+                .rev()
+                .find(|&i| near_loop(i, k))
+                .map_or(first, |i| (i + 1).max(first))
+        })
+        .collect();
+    // Contour pieces each perimeter piece leans on.
+    let leans: Vec<Vec<usize>> = (0..pieces.len())
+        .map(|k| {
+            if pieces[k].0 != StrandKind::Perimeter {
+                return Vec::new();
+            }
+            (0..pieces.len())
+                .filter(|&j| {
+                    pieces[j].0 == StrandKind::Contour
+                        && crate::geometry::boxes_within(
+                            boxes[j].as_ref(),
+                            boxes[k].as_ref(),
+                            reach,
+                        )
+                        && crate::geometry::polylines_within(pieces[j].1, pieces[k].1, reach)
+                })
+                .collect()
+        })
+        .collect();
+    let mut laid = vec![false; pieces.len()];
+    let mut out: Vec<Strand> = Vec::with_capacity(loops.len() + pieces.len());
+    let mut moved = false;
+    // The points of each closed piece a seam may take, found once it is free to go.
+    let mut seams: Vec<Option<Polyline>> = vec![None; pieces.len()];
+    // Lays, from `at`, the pieces free to go (`free`) whose detour from `at` to `next` costs
+    // at most [`FINISH_DETOUR`] widths more than `base`, cheapest first.
+    let mut lay = |out: &mut Vec<Strand>,
+                   laid: &mut Vec<bool>,
+                   mut at: [f64; 2],
+                   next: Option<[f64; 2]>,
+                   mut base: f64,
+                   free: &dyn Fn(usize) -> bool| {
+        let mut count = 0usize;
+        loop {
+            let mut best: Option<(f64, usize, bool, [f64; 2])> = None;
+            for k in (0..pieces.len()).filter(|&k| !laid[k] && free(k)) {
+                if leans[k].iter().any(|&j| !laid[j]) {
+                    continue;
+                }
+                let p = pieces[k].1;
+                let closed = is_closed(p);
+                for rev in [false, true] {
+                    if closed && rev {
+                        continue;
+                    }
+                    let (s, e) = if closed {
+                        // Its seam on a point the strands laid hold (all it leans on is
+                        // laid by now): a ring begun over air leaves its first bead
+                        // dangling there.
+                        let seams = seams[k].get_or_insert_with(|| {
+                            let on: Vec<[f64; 2]> = p
+                                .iter()
+                                .copied()
+                                .filter(|&v| {
+                                    out.iter().any(|s| {
+                                        let r = s.width / 2.0 + HELD_CUT * pieces[k].2;
+                                        s.points.windows(2).any(|q| {
+                                            let c =
+                                                crate::geometry::nearest_on_segment(v, q[0], q[1])
+                                                    .1;
+                                            dist2(c, v) <= r * r
+                                        })
+                                    })
+                                })
+                                .collect();
+                            if on.is_empty() {
+                                p.clone()
+                            } else {
+                                on
+                            }
+                        });
+                        let s = seams
+                            .iter()
+                            .copied()
+                            .min_by(|a, b| dist2(*a, at).total_cmp(&dist2(*b, at)))
+                            .unwrap_or(p[0]);
+                        (s, s)
+                    } else if rev {
+                        (p[p.len() - 1], p[0])
+                    } else {
+                        (p[0], p[p.len() - 1])
+                    };
+                    let cost =
+                        dist2(at, s).sqrt() + next.map_or(0.0, |n| dist2(e, n).sqrt()) - base;
+                    if best.is_none_or(|b| cost < b.0) {
+                        best = Some((cost, k, rev, s));
+                    }
+                }
+            }
+            let Some((_, k, rev, seam)) =
+                best.filter(|b| next.is_none() || b.0 <= FINISH_DETOUR * w)
+            else {
+                break;
+            };
+            let mut points = pieces[k].1.clone();
+            if is_closed(&points) {
+                start_nearest(&mut points, seam);
+            } else if rev {
+                points.reverse();
+            }
+            at = points[points.len() - 1];
+            out.push(Strand {
+                kind: pieces[k].0,
+                loop_index: 0,
+                points,
+                width: pieces[k].2,
+            });
+            laid[k] = true;
+            count += 1;
+            base = next.map_or(0.0, |n| dist2(at, n).sqrt());
+        }
+        count
+    };
+    for (i, strand) in loops.iter().enumerate() {
+        // Where the pieces that lean on this strand last are free to go along it.
+        let cum = running_lengths(&strand.points);
+        let total = cum[cum.len() - 1];
+        let mut cuts: Vec<(f64, usize)> = (0..pieces.len())
+            .filter(|&k| !laid[k] && ready[k] == i + 1 && i >= first)
+            .filter_map(|k| {
+                let t = last_near(&strand.points, &cum, pieces[k].1, reach, w / 4.0)?;
+                (t >= w && t <= total - w).then_some((t, k))
+            })
+            .collect();
+        cuts.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let mut from = 0.0;
+        let mut passed: Vec<usize> = Vec::new();
+        for &(t, k) in &cuts {
+            passed.push(k);
+            if t < from + w {
+                continue;
+            }
+            let here = point_along(&strand.points, &cum, t);
+            // A cut leaves two ends there: only where a strand laid before holds the bead
+            // (a cut over air left its end dangling: 1.1 mm in air where the loop had
+            // bridged whole).
+            let held = out.iter().any(|s| {
+                let r = s.width / 2.0 + HELD_CUT * strand.width;
+                s.points.windows(2).any(|q| {
+                    let c = crate::geometry::nearest_on_segment(here, q[0], q[1]).1;
+                    dist2(c, here) <= r * r
+                })
+            });
+            if !held {
+                continue;
+            }
+            let free = |j: usize| ready[j] <= i || passed.contains(&j);
+            let mut pieces_out = Vec::new();
+            moved |= lay(&mut pieces_out, &mut laid, here, Some(here), 0.0, &free) > 0;
+            if !pieces_out.is_empty() {
+                out.push(Strand {
+                    points: sub_polyline(&strand.points, &cum, from, t),
+                    ..strand.clone()
+                });
+                out.extend(pieces_out);
+                from = t;
+            }
+        }
+        out.push(Strand {
+            points: if from > 0.0 {
+                sub_polyline(&strand.points, &cum, from, total)
+            } else {
+                strand.points.clone()
+            },
+            ..strand.clone()
+        });
+        let Some(next) = loops.get(i + 1) else { break };
+        let at = strand.points[strand.points.len() - 1];
+        let next_at = next.points[0];
+        // The hop to the next loop costs nothing where the writer joins it by a connector.
+        let joined = strand.kind == StrandKind::Loop
+            && next.kind == StrandKind::Loop
+            && (next.loop_index == strand.loop_index || next.loop_index == strand.loop_index + 1)
+            && dist2(at, next_at).sqrt() <= 2.0 * strand.width.min(next.width);
+        let base = if joined {
+            0.0
+        } else {
+            dist2(at, next_at).sqrt()
+        };
+        moved |= lay(&mut out, &mut laid, at, Some(next_at), base, &|j| {
+            ready[j] <= i + 1
+        }) > 0;
+    }
+    if !moved {
+        return None;
+    }
+    // The rest after the loops, nearest first, each once all it leans on is laid.
+    let at = out.last().and_then(|s| s.points.last().copied())?;
+    lay(&mut out, &mut laid, at, None, 0.0, &|_| true);
+    Some(out)
 }
 
 /// Travel between the strands of a plan, less the hops from a loop to itself or the next
@@ -2302,6 +2651,68 @@ mod tests {
             travel <= 0.10 * length,
             "travel {travel:.1} mm for {length:.1} mm of loops"
         );
+    }
+
+    #[test]
+    fn a_shelf_pierced_by_holes_finishes_each_hole_as_its_loops_pass_it() {
+        // A 30 mm plate on a 12 mm post, pierced by sixteen 3 mm holes round it: the fronts
+        // pass hole after hole. Toured after the loops, every hole's contour and perimeter
+        // cost a travel there (11.7 % of the plan's length on a sliced plate like it); laid
+        // as the loops leave each hole behind, a short hop out and back.
+        let ring = |cx: f64, cy: f64, r: f64, n: usize| -> Polygon<f64> {
+            let pts: Vec<geo::Coord<f64>> = (0..=n)
+                .map(|i| {
+                    let a = i as f64 / n as f64 * std::f64::consts::TAU;
+                    geo::coord! {x: cx + r * a.cos(), y: cy + r * a.sin()}
+                })
+                .collect();
+            Polygon::new(geo::LineString::new(pts), vec![])
+        };
+        let holes: Vec<Polygon<f64>> = (0..5)
+            .flat_map(|i| (0..5).map(move |j| (i, j)))
+            .filter(|&(i, j)| i == 0 || i == 4 || j == 0 || j == 4)
+            .map(|(i, j)| ring(5.0 + 5.0 * i as f64, 5.0 + 5.0 * j as f64, 1.5, 24))
+            .collect();
+        // Rounded corners: a square corner's contour stands past the loops' arcs there.
+        let plate = difference(
+            &offset(&mp(vec![rect(3.0, 3.0, 27.0, 27.0)]), 3.0),
+            &MultiPolygon::new(holes),
+        );
+        let below = MultiPolygon::new(vec![ring(15.0, 15.0, 6.0, 48)]);
+        let widths = bead_widths();
+        let zone = difference(&plate, &below);
+        let plan = plan_over(
+            zone.0[0].clone(),
+            &below,
+            &plate,
+            widths,
+            &PoaSettings::default(),
+        );
+        let length: f64 = plan.strands.iter().map(|s| s.length()).sum();
+        let travel = hop_travel(&plan.strands);
+        assert_each_strand_held(&plan, &below);
+        assert!(
+            travel <= 0.10 * length,
+            "travel {travel:.1} mm for {length:.1} mm of strands"
+        );
+        // No loop laid after a piece of the contour or perimeter touches it.
+        let touch = (widths.loop_width + widths.perimeter_width) / 2.0 + 0.05;
+        for (k, f) in plan.strands.iter().enumerate() {
+            if f.kind == StrandKind::Loop {
+                continue;
+            }
+            for l in plan.strands[k + 1..]
+                .iter()
+                .filter(|s| s.kind == StrandKind::Loop)
+            {
+                assert!(
+                    !crate::geometry::polylines_within(&l.points, &f.points, touch),
+                    "loop {} laid against a {:?} piece laid before it",
+                    l.loop_index,
+                    f.kind
+                );
+            }
+        }
     }
 
     /// The centrelines of a plan's perimeter strands.
