@@ -141,6 +141,19 @@ fn resting_on<'a>(kept: &'a std::collections::VecDeque<Layer>, layer: &Layer) ->
         .unwrap_or_default()
 }
 
+/// The layers the deposition check judges `layer` on among `kept` ([`crate::check::resting_on`]):
+/// those it rests on, and those whose support material holds it across the slicer's contact
+/// gap. The rewrite's judges read these, as `poa check` does: judged on the layer it rests on
+/// alone, a cap's first layer over Cura's support (a layer's gap under it) was all "in air"
+/// as sliced and as rewritten, and a rewrite 1.7 mm worse on `poa check` passed.
+fn judged_on<'a>(kept: &'a std::collections::VecDeque<Layer>, layer: &Layer) -> Vec<&'a Layer> {
+    let below = resting_on(kept, layer);
+    if below.is_empty() || (layer.contact.is_empty() && layer.gap_below.is_empty()) {
+        return below;
+    }
+    crate::check::resting_on(layer, kept.iter())
+}
+
 /// Regions of a layer with their report numbers.
 type Chosen<'r> = Vec<(usize, &'r crate::geometry::Region)>;
 
@@ -2002,7 +2015,7 @@ impl<'a> PoaPass<'a> {
         if !regions.iter().any(auto) {
             return vec![false; regions.len()];
         }
-        let below = resting_on(&self.below_layers, layer);
+        let below = judged_on(&self.below_layers, layer);
         if below.is_empty() {
             return vec![false; regions.len()];
         }
@@ -2209,7 +2222,7 @@ impl<'a> PoaPass<'a> {
             })
             .collect();
         let in_air = |me: &Self, back: &Layer| -> f64 {
-            let below = resting_on(&me.below_layers, layer);
+            let below = judged_on(&me.below_layers, layer);
             crate::check::samples_inside(&below, back, me.motion.filament_area, &windows)
                 .iter()
                 .filter(|s| s.support == crate::check::Support::InAir)
@@ -2235,7 +2248,7 @@ impl<'a> PoaPass<'a> {
     /// the tolerance, but still rests on it: reported as "no loop fits", 18 of a plate of
     /// nine lying cylinders read as left in air.)
     fn held_as_sliced(&self, layer: &Layer, region: &crate::geometry::Region, w: f64) -> bool {
-        let below = resting_on(&self.below_layers, layer);
+        let below = judged_on(&self.below_layers, layer);
         let Some(b) = geo::BoundingRect::bounding_rect(&region.polygon) else {
             return false;
         };
@@ -2715,11 +2728,17 @@ impl PoaPass<'_> {
                 JUDGE_REACH,
             )
         };
+        let judged_below = judged_on(&self.below_layers, layer);
         let sliced_check = std::cell::OnceCell::new();
         let sliced = || {
             sliced_check.get_or_init(|| {
                 sliced_window.map(|w| {
-                    crate::check::check_layer_within(&below, layer, self.motion.filament_area, w)
+                    crate::check::check_layer_within(
+                        &judged_below,
+                        layer,
+                        self.motion.filament_area,
+                        w,
+                    )
                 })
             })
         };
@@ -2828,7 +2847,7 @@ impl PoaPass<'_> {
                     < JUDGED_AREA;
             let worse = |back: &Option<Layer>| {
                 back.as_ref().filter(|_| judged).and_then(|b| {
-                    self.worse_in_air(&below, b, sliced_window.zip(sliced().as_ref()))
+                    self.worse_in_air(&judged_below, b, sliced_window.zip(sliced().as_ref()))
                 })
             };
             let (mut bytes, mut stats, mut back, mut planned) = attempt(BlockPlace::AtEntry);

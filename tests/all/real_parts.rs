@@ -922,6 +922,24 @@ fn a_part_on_a_raft_and_support_is_held_by_them() {
     }
 }
 
+/// Cura prints a C-shaped cap on support with interface and a layer's gap under the cap; a
+/// small bar of the cap's first layer beside the post is over air. The rewrite is judged on
+/// what `poa check` stands the layer on, the support across the gap included: judged on the
+/// gap layer alone, the whole layer read as in air as sliced and as rewritten, and a rewrite
+/// 1.7 mm worse on `poa check` went out.
+#[test]
+fn a_cap_on_cura_s_support_is_judged_with_the_support_under_it() {
+    let Some(d) = slice_cura(
+        &part("c_cap"),
+        "prusa_i3_mk3",
+        &["support_enable=true", "support_interface_enable=true"],
+    ) else {
+        return;
+    };
+    let (new, _) = rewrite(&d, BridgeMode::Auto);
+    no_layer_worse("c_cap on Cura's support", &check(&d), &check(&new));
+}
+
 /// PrusaSlicer with thick bridges, four perimeters, cubic infill, concentric top and the seam
 /// at the rear (a held-out settings set).
 const THICK_BRIDGES: &[&str] = &[
