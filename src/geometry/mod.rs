@@ -749,6 +749,53 @@ mod tests {
     }
 
     #[test]
+    fn polylines_are_within_a_gap_where_any_two_of_their_segments_are() {
+        // Crossing segments whose ends all lie far from the other one.
+        assert!(segments_within(
+            [0.0, -5.0],
+            [0.0, 5.0],
+            [-5.0, 0.0],
+            [5.0, 0.0],
+            0.1
+        ));
+        // Parallel, 1 mm apart.
+        assert!(segments_within(
+            [0.0, 0.0],
+            [10.0, 0.0],
+            [2.0, 1.0],
+            [8.0, 1.0],
+            1.0
+        ));
+        assert!(!segments_within(
+            [0.0, 0.0],
+            [10.0, 0.0],
+            [2.0, 1.0],
+            [8.0, 1.0],
+            0.99
+        ));
+        // End to end along a line, 0.5 mm apart.
+        assert!(!segments_within(
+            [0.0, 0.0],
+            [1.0, 0.0],
+            [1.5, 0.0],
+            [3.0, 0.0],
+            0.49
+        ));
+        // A ring round a point far inside it is not near a short stroke at its centre,
+        // though their boxes meet.
+        let ring: Vec<[f64; 2]> = (0..=32)
+            .map(|i| {
+                let a = i as f64 / 32.0 * std::f64::consts::TAU;
+                [10.0 * a.cos(), 10.0 * a.sin()]
+            })
+            .collect();
+        let stroke = [[-1.0, 0.0], [1.0, 0.0]];
+        assert!(!polylines_within(&ring, &stroke, 5.0));
+        assert!(polylines_within(&ring, &[[-1.0, 0.0], [9.5, 0.0]], 0.6));
+        assert!(!polylines_within(&ring, &[[0.0, 0.0]], 100.0));
+    }
+
+    #[test]
     fn opening_drops_thin_parts() {
         let thin = mp(vec![rect(0.0, 0.0, 10.0, 0.3), rect(0.0, 5.0, 10.0, 8.0)]);
         let opened = opening(&thin, 0.2);

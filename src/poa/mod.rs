@@ -2654,6 +2654,31 @@ mod tests {
     }
 
     #[test]
+    fn pieces_meeting_end_to_end_are_chained_into_one() {
+        let a = vec![[0.0, 0.0], [5.0, 0.0]];
+        // Meets a's start with its start, and c's end with its end.
+        let b = vec![[-0.1, 0.0], [-5.0, 0.0], [-5.0, 5.0]];
+        let c = vec![[5.0, 10.0], [-5.0, 5.1]];
+        let far = vec![[20.0, 0.0], [25.0, 0.0]];
+        let ring = vec![[5.05, 0.0], [8.0, 0.0], [8.0, 3.0], [5.05, 0.0]];
+        let out = chained(&[a, b, far.clone(), c, ring.clone()], 0.2);
+        assert_eq!(out.len(), 3, "{out:?}");
+        let long = out
+            .iter()
+            .find(|p| p.len() == 7)
+            .expect("a, b and c in one");
+        let ends = [long[0], long[6]];
+        assert!(
+            ends.contains(&[5.0, 0.0]) && ends.contains(&[5.0, 10.0]),
+            "{long:?}"
+        );
+        for w in long.windows(2) {
+            assert!(dist2(w[0], w[1]).sqrt() < 11.2, "{long:?}");
+        }
+        assert!(out.contains(&far) && out.contains(&ring));
+    }
+
+    #[test]
     fn a_shelf_pierced_by_holes_finishes_each_hole_as_its_loops_pass_it() {
         // A 30 mm plate on a 12 mm post, pierced by sixteen 3 mm holes round it: the fronts
         // pass hole after hole. Toured after the loops, every hole's contour and perimeter
