@@ -721,18 +721,34 @@ pub(super) fn plan_in(
                 spliced,
                 contour.clone(),
                 perimeter.clone(),
-                (w, we),
+                (w, we, below_loc),
                 at,
                 start,
             );
-            let b = assemble(&strands, ordered, contour, perimeter, (w, we), at, start);
+            let b = assemble(
+                &strands,
+                ordered,
+                contour,
+                perimeter,
+                (w, we, below_loc),
+                at,
+                start,
+            );
             if hop_travel(&a) < hop_travel(&b) {
                 a
             } else {
                 b
             }
         }
-        None => assemble(&strands, ordered, contour, perimeter, (w, we), at, start),
+        None => assemble(
+            &strands,
+            ordered,
+            contour,
+            perimeter,
+            (w, we, below_loc),
+            at,
+            start,
+        ),
     };
     let loops_count = strands
         .iter()
@@ -1069,7 +1085,7 @@ fn assemble(
     seq: Vec<(usize, Polyline)>,
     contour: Vec<Polyline>,
     perimeter: Vec<Polyline>,
-    (w, we): (f64, f64),
+    (w, we, below): (f64, f64, &MultiPolygon<f64>),
     mut at: [f64; 2],
     start: [f64; 2],
 ) -> Vec<Strand> {
@@ -1083,7 +1099,7 @@ fn assemble(
         points: p,
         width: w,
     }));
-    let early = interleave(&strands, &contour, &perimeter, (w, we), prefix.len());
+    let early = interleave(&strands, &contour, &perimeter, (w, we), prefix.len(), below);
     strands.extend(finish_order(contour, perimeter, w, we, &mut at));
     arrange(&mut strands, start);
     match early {
@@ -1201,20 +1217,56 @@ fn interleave(
     perimeter: &[Polyline],
     (w, we): (f64, f64),
     first: usize,
+    below: &MultiPolygon<f64>,
 ) -> Option<Vec<Strand>> {
-    let reach = w + we;
-    let (contour, perimeter) = (chained(contour, w / 2.0), chained(perimeter, we / 2.0));
-    let pieces: Vec<(StrandKind, &Polyline, f64)> = contour
-        .iter()
+    let piece = |kind: StrandKind, width: f64| {
+        move |p: Polyline| Strand {
+            kind,
+            loop_index: 0,
+            points: p,
+            width,
+        }
+    };
+    let pool: Vec<Strand> = chained(contour, w / 2.0)
+        .into_iter()
         .filter(|p| polyline_length(p) >= w)
-        .map(|p| (StrandKind::Contour, p, w))
+        .map(piece(StrandKind::Contour, w))
         .chain(
-            perimeter
-                .iter()
+            chained(perimeter, we / 2.0)
+                .into_iter()
                 .filter(|p| polyline_length(p) >= we)
-                .map(|p| (StrandKind::Perimeter, p, we)),
+                .map(piece(StrandKind::Perimeter, we)),
         )
         .collect();
+    pull_forward(loops, &pool, (w + we, w), first, below)
+}
+
+/// Which strands lean on which: loops on lower loops, the contour on loops, the moved
+/// perimeter on both.
+fn rank(s: &Strand) -> usize {
+    match s.kind {
+        StrandKind::Loop => s.loop_index,
+        StrandKind::Contour => usize::MAX - 1,
+        StrandKind::Perimeter => usize::MAX,
+    }
+}
+
+/// `loops` (in print order) with the strands of `pool` laid among them: each as soon as every
+/// strand it leans on is printed (those of a lower [`rank`] within `reach` of it) and the
+/// nozzle passes within [`FINISH_DETOUR`] widths (`w`) of it, there and back: between two
+/// strands, or along the last strand it leans on once that strand is past it (cut there, where
+/// a strand laid before holds its bead, and resumed after). The rest follow, nearest first.
+/// Nothing printed after a strand of the pool comes within reach of it but what leans on it.
+/// `None` when the plan is too big to weigh ([`INTERLEAVE_WORK`]) or no strand moves.
+fn pull_forward(
+    loops: &[Strand],
+    pool: &[Strand],
+    (reach, w): (f64, f64),
+    first: usize,
+    below: &MultiPolygon<f64>,
+) -> Option<Vec<Strand>> {
+    let pieces: Vec<(StrandKind, &Polyline, f64)> =
+        pool.iter().map(|s| (s.kind, &s.points, s.width)).collect();
     let loop_points: usize = loops.iter().map(|s| s.points.len()).sum();
     let piece_points: usize = pieces.iter().map(|p| p.1.len()).sum();
     if pieces.is_empty()
@@ -1245,21 +1297,22 @@ fn interleave(
                 .map_or(first, |i| (i + 1).max(first))
         })
         .collect();
-    // Contour pieces each perimeter piece leans on.
-    let leans: Vec<Vec<usize>> = (0..pieces.len())
+    // The strands of the pool each one leans on.
+    let leans: Vec<Vec<usize>> = (0..pool.len())
         .map(|k| {
-            if pieces[k].0 != StrandKind::Perimeter {
-                return Vec::new();
-            }
-            (0..pieces.len())
+            (0..pool.len())
                 .filter(|&j| {
-                    pieces[j].0 == StrandKind::Contour
+                    rank(&pool[j]) < rank(&pool[k])
                         && crate::geometry::boxes_within(
                             boxes[j].as_ref(),
                             boxes[k].as_ref(),
                             reach,
                         )
-                        && crate::geometry::polylines_within(pieces[j].1, pieces[k].1, reach)
+                        && crate::geometry::polylines_within(
+                            &pool[j].points,
+                            &pool[k].points,
+                            reach,
+                        )
                 })
                 .collect()
         })
@@ -1347,10 +1400,8 @@ fn interleave(
             }
             at = points[points.len() - 1];
             out.push(Strand {
-                kind: pieces[k].0,
-                loop_index: 0,
                 points,
-                width: pieces[k].2,
+                ..pool[k].clone()
             });
             laid[k] = true;
             count += 1;
@@ -1387,7 +1438,11 @@ fn interleave(
                     let c = crate::geometry::nearest_on_segment(here, q[0], q[1]).1;
                     dist2(c, here) <= r * r
                 })
-            });
+            }) || {
+                use geo::{Distance, Euclidean};
+                Euclidean.distance(&geo::Point::new(here[0], here[1]), below)
+                    <= HELD_CUT * strand.width
+            };
             if !held {
                 continue;
             }
