@@ -714,41 +714,28 @@ pub(super) fn plan_in(
     // The loops with the next loops' bits laid from the rings that hold them, kept where
     // the whole plan so travels less (bits close together along a ring were reached one
     // from the next, and each spliced one returns to the ring).
+    let assembled = |seq: Vec<(usize, Polyline)>, contour: Vec<Polyline>, perimeter| {
+        assemble(
+            &strands,
+            seq,
+            contour,
+            perimeter,
+            (w, we, below_loc),
+            at,
+            start,
+        )
+    };
     let strands = match splice_into_rings(&ordered, step, w) {
         Some(spliced) => {
-            let a = assemble(
-                &strands,
-                spliced,
-                contour.clone(),
-                perimeter.clone(),
-                (w, we, below_loc),
-                at,
-                start,
-            );
-            let b = assemble(
-                &strands,
-                ordered,
-                contour,
-                perimeter,
-                (w, we, below_loc),
-                at,
-                start,
-            );
+            let a = assembled(spliced, contour.clone(), perimeter.clone());
+            let b = assembled(ordered, contour, perimeter);
             if hop_travel(&a) < hop_travel(&b) {
                 a
             } else {
                 b
             }
         }
-        None => assemble(
-            &strands,
-            ordered,
-            contour,
-            perimeter,
-            (w, we, below_loc),
-            at,
-            start,
-        ),
+        None => assembled(ordered, contour, perimeter),
     };
     let loops_count = strands
         .iter()
