@@ -1092,7 +1092,8 @@ fn assemble(
     match early {
         Some(mut e) => {
             arrange(&mut e, start);
-            if hop_travel(&e) < hop_travel(&strands) - 1e-9 {
+            // Rings' seams on held points are worth a little travel.
+            if hop_travel(&e) < hop_travel(&strands) + SEAM_SLACK * w {
                 e
             } else {
                 strands
@@ -1101,6 +1102,10 @@ fn assemble(
         None => strands,
     }
 }
+
+/// Travel (in widths) a plan whose rings start on held points may add to the one whose rings
+/// start nearest the nozzle ([`assemble`]).
+const SEAM_SLACK: f64 = 2.0;
 
 /// Farthest (in widths) the nozzle goes out of its way, from where it is between or along
 /// strands of loops and back, to lay a piece of the contour or the moved perimeter there
@@ -1306,7 +1311,6 @@ fn pull_forward(
         .collect();
     let mut laid = vec![false; pieces.len()];
     let mut out: Vec<Strand> = Vec::with_capacity(loops.len() + pieces.len());
-    let mut moved = false;
     // The points of each closed piece a seam may take, found once it is free to go.
     let mut seams: Vec<Option<Polyline>> = vec![None; pieces.len()];
     // Lays, from `at`, the pieces free to go (`free`) whose detour from `at` to `next` costs
@@ -1435,7 +1439,7 @@ fn pull_forward(
             }
             let free = |j: usize| ready[j] <= i || passed.contains(&j);
             let mut pieces_out = Vec::new();
-            moved |= lay(&mut pieces_out, &mut laid, here, Some(here), 0.0, &free) > 0;
+            lay(&mut pieces_out, &mut laid, here, Some(here), 0.0, &free);
             if !pieces_out.is_empty() {
                 out.push(Strand {
                     points: sub_polyline(&strand.points, &cum, from, t),
@@ -1466,12 +1470,9 @@ fn pull_forward(
         } else {
             dist2(at, next_at).sqrt()
         };
-        moved |= lay(&mut out, &mut laid, at, Some(next_at), base, &|j| {
+        lay(&mut out, &mut laid, at, Some(next_at), base, &|j| {
             ready[j] <= i + 1
-        }) > 0;
-    }
-    if !moved {
-        return None;
+        });
     }
     // The rest after the loops, nearest first, each once all it leans on is laid.
     let at = out.last().and_then(|s| s.points.last().copied())?;
@@ -2696,6 +2697,37 @@ mod tests {
     }
 
     #[test]
+    fn a_ring_laid_after_the_loops_starts_on_a_bead_they_laid() {
+        // One loop along y = 0, then a perimeter ring whose corner nearest the loop's end
+        // stands 0.8 mm off it, over nothing; its side along the loop lies on the loop's bead.
+        let strand = |kind, points: Vec<[f64; 2]>| Strand {
+            kind,
+            loop_index: if kind == StrandKind::Loop { 1 } else { 0 },
+            points,
+            width: W,
+        };
+        let base = vec![strand(StrandKind::Loop, vec![[0.0, 0.0], [10.0, 0.0]])];
+        let ring = vec![
+            [0.0, 0.25],
+            [8.0, 0.25],
+            [10.5, 0.8],
+            [10.5, 5.0],
+            [0.0, 5.0],
+            [0.0, 0.25],
+        ];
+        let pool = vec![strand(StrandKind::Perimeter, ring)];
+        let out = pull_forward(&base, &pool, (2.0 * W, W), 0, &MultiPolygon::new(vec![]))
+            .expect("a plan this small is weighed");
+        assert_eq!(out.len(), 2);
+        let seam = out[1].points[0];
+        assert!(
+            seam[1] <= 0.25 + 1e-9,
+            "the ring starts at {seam:?}, off the loop's bead"
+        );
+        assert!(is_closed(&out[1].points));
+    }
+
+    #[test]
     fn pieces_meeting_end_to_end_are_chained_into_one() {
         let a = vec![[0.0, 0.0], [5.0, 0.0]];
         // Meets a's start with its start, and c's end with its end.
@@ -2762,6 +2794,23 @@ mod tests {
             travel <= 0.10 * length,
             "travel {travel:.1} mm for {length:.1} mm of strands"
         );
+        // Each ring of the contour or perimeter starts on a bead laid before it.
+        for (k, f) in plan.strands.iter().enumerate() {
+            if f.kind == StrandKind::Loop || !is_closed(&f.points) {
+                continue;
+            }
+            let seam = f.points[0];
+            let held = plan.strands[..k].iter().any(|s| {
+                let r = s.width / 2.0 + HELD_CUT * f.width + 1e-6;
+                s.points.windows(2).any(|q| {
+                    dist2(
+                        crate::geometry::nearest_on_segment(seam, q[0], q[1]).1,
+                        seam,
+                    ) <= r * r
+                })
+            });
+            assert!(held, "a {:?} ring starts at {seam:?}, on nothing", f.kind);
+        }
         // No loop laid after a piece of the contour or perimeter touches it.
         let touch = (widths.loop_width + widths.perimeter_width) / 2.0 + 0.05;
         for (k, f) in plan.strands.iter().enumerate() {
