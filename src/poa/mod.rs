@@ -1117,8 +1117,9 @@ const FINISH_DETOUR: f64 = 6.0;
 /// support (a quarter of a width), less a margin.
 const HELD_CUT: f64 = 0.15;
 
-/// Most (loop point, finishing piece point) pairs [`interleave`] weighs (its distance tests
-/// run over such pairs); past it the finishing pieces all follow the loops. A plate pierced
+/// Most (loop or pool point, pool point) pairs [`pull_forward`] weighs (its distance tests
+/// run over such pairs: pool against loops, and pool against pool for what leans on what);
+/// past it the pool follows the loops, as planned. A plate pierced
 /// by 16 holes: 13.5 million, 10 ms.
 const INTERLEAVE_WORK: usize = 50_000_000;
 
@@ -1198,11 +1199,12 @@ fn chained(pieces: &[Polyline], gap: f64) -> Vec<Polyline> {
 /// a width of either bead, and for a perimeter piece the contour beside it, as in
 /// [`finish_order`]) and the nozzle passes within [`FINISH_DETOUR`] widths of it, there and
 /// back: between two strands, or along the last strand it leans on, once that strand is
-/// past it (the strand is cut there and resumed after). The rest follow the loops, as
-/// [`finish_order`] lays them. Nothing printed after a piece comes within reach of it.
+/// past it (the strand is cut there and resumed after). The rest follow the loops, nearest
+/// first, as [`finish_order`] lays them; a ring starts on a point a bead laid before (or the
+/// wall below) holds. Nothing printed after a piece comes within reach of it.
 /// A shelf pierced by holes grew its loops past hole after hole, then toured every hole
 /// again for its contour and perimeter (16 holes: 11.7 % of the loops' length in travel).
-/// `None` when the plan is too big to weigh ([`INTERLEAVE_WORK`]) or no piece moves.
+/// `None` when the plan is too big to weigh ([`INTERLEAVE_WORK`]).
 fn interleave(
     loops: &[Strand],
     contour: &[Polyline],
@@ -1249,7 +1251,7 @@ fn rank(s: &Strand) -> usize {
 /// strands, or along the last strand it leans on once that strand is past it (cut there, where
 /// a strand laid before holds its bead, and resumed after). The rest follow, nearest first.
 /// Nothing printed after a strand of the pool comes within reach of it but what leans on it.
-/// `None` when the plan is too big to weigh ([`INTERLEAVE_WORK`]) or no strand moves.
+/// `None` when the plan is too big to weigh ([`INTERLEAVE_WORK`]).
 fn pull_forward(
     loops: &[Strand],
     pool: &[Strand],
@@ -1263,7 +1265,7 @@ fn pull_forward(
     let piece_points: usize = pieces.iter().map(|p| p.1.len()).sum();
     if pieces.is_empty()
         || loops.len() <= first
-        || loop_points.saturating_mul(piece_points) > INTERLEAVE_WORK
+        || (loop_points + piece_points).saturating_mul(piece_points) > INTERLEAVE_WORK
         || loops.iter().any(|s| s.points.len() < 2)
     {
         return None;
