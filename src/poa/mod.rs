@@ -1272,20 +1272,18 @@ fn pull_forward(
     first: usize,
     below: &MultiPolygon<f64>,
 ) -> Option<Vec<Strand>> {
-    let pieces: Vec<(StrandKind, &Polyline, f64)> =
-        pool.iter().map(|s| (s.kind, &s.points, s.width)).collect();
     let loop_points: usize = loops.iter().map(|s| s.points.len()).sum();
-    let piece_points: usize = pieces.iter().map(|p| p.1.len()).sum();
-    if pieces.is_empty()
+    let piece_points: usize = pool.iter().map(|p| p.points.len()).sum();
+    if pool.is_empty()
         || loops.len() <= first
         || (loop_points + piece_points).saturating_mul(piece_points) > INTERLEAVE_WORK
         || loops.iter().any(|s| s.points.len() < 2)
     {
         return None;
     }
-    let boxes: Vec<Option<geo::Rect<f64>>> = pieces
+    let boxes: Vec<Option<geo::Rect<f64>>> = pool
         .iter()
-        .map(|p| crate::geometry::points_box(p.1))
+        .map(|p| crate::geometry::points_box(&p.points))
         .collect();
     let loop_boxes: Vec<Option<geo::Rect<f64>>> = loops
         .iter()
@@ -1293,10 +1291,10 @@ fn pull_forward(
         .collect();
     let near_loop = |i: usize, k: usize| {
         crate::geometry::boxes_within(loop_boxes[i].as_ref(), boxes[k].as_ref(), reach)
-            && crate::geometry::polylines_within(&loops[i].points, pieces[k].1, reach)
+            && crate::geometry::polylines_within(&loops[i].points, &pool[k].points, reach)
     };
     // ready[k]: loop strands laid before piece k may be (its last near one, plus one).
-    let ready: Vec<usize> = (0..pieces.len())
+    let ready: Vec<usize> = (0..pool.len())
         .map(|k| {
             (0..loops.len())
                 .rev()
@@ -1324,10 +1322,10 @@ fn pull_forward(
                 .collect()
         })
         .collect();
-    let mut laid = vec![false; pieces.len()];
-    let mut out: Vec<Strand> = Vec::with_capacity(loops.len() + pieces.len());
+    let mut laid = vec![false; pool.len()];
+    let mut out: Vec<Strand> = Vec::with_capacity(loops.len() + pool.len());
     // The points of each closed piece a seam may take, found once it is free to go.
-    let mut seams: Vec<Option<Polyline>> = vec![None; pieces.len()];
+    let mut seams: Vec<Option<Polyline>> = vec![None; pool.len()];
     // Lays, from `at`, the pieces free to go (`free`) whose detour from `at` to `next` costs
     // at most [`FINISH_DETOUR`] widths more than `base`, cheapest first.
     let mut lay = |out: &mut Vec<Strand>,
@@ -1339,11 +1337,11 @@ fn pull_forward(
         let mut count = 0usize;
         loop {
             let mut best: Option<(f64, usize, bool, [f64; 2])> = None;
-            for k in (0..pieces.len()).filter(|&k| !laid[k] && free(k)) {
+            for k in (0..pool.len()).filter(|&k| !laid[k] && free(k)) {
                 if leans[k].iter().any(|&j| !laid[j]) {
                     continue;
                 }
-                let p = pieces[k].1;
+                let p = &pool[k].points;
                 let closed = is_closed(p);
                 for rev in [false, true] {
                     if closed && rev {
@@ -1357,7 +1355,7 @@ fn pull_forward(
                             let on: Vec<[f64; 2]> = p
                                 .iter()
                                 .copied()
-                                .filter(|&v| held(out, below, v, pieces[k].2))
+                                .filter(|&v| held(out, below, v, pool[k].width))
                                 .collect();
                             if on.is_empty() {
                                 p.clone()
@@ -1388,7 +1386,7 @@ fn pull_forward(
             else {
                 break;
             };
-            let mut points = pieces[k].1.clone();
+            let mut points = pool[k].points.clone();
             if is_closed(&points) {
                 start_nearest(&mut points, seam);
             } else if rev {
@@ -1409,10 +1407,10 @@ fn pull_forward(
         // Where the pieces that lean on this strand last are free to go along it.
         let cum = running_lengths(&strand.points);
         let total = cum[cum.len() - 1];
-        let mut cuts: Vec<(f64, usize)> = (0..pieces.len())
+        let mut cuts: Vec<(f64, usize)> = (0..pool.len())
             .filter(|&k| !laid[k] && ready[k] == i + 1 && i >= first)
             .filter_map(|k| {
-                let t = last_near(&strand.points, &cum, pieces[k].1, reach, w / 4.0)?;
+                let t = last_near(&strand.points, &cum, &pool[k].points, reach, w / 4.0)?;
                 (t >= w && t <= total - w).then_some((t, k))
             })
             .collect();
