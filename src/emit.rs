@@ -2913,7 +2913,7 @@ impl PoaPass<'_> {
                         &crate::geometry::margin(&zones, AWAY_FROM_ZONES),
                     );
                     let printed = crate::geometry::union(
-                        &crate::geometry::printed_area(r, &self.opts.detect.area),
+                        &crate::geometry::printed_area_any_order(r, &self.opts.detect.area),
                         &away,
                     );
                     let rewritten = crate::geometry::intersection(

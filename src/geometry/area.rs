@@ -611,6 +611,70 @@ pub(super) fn wall_joins(layer: &Layer) -> Vec<Path> {
     joins
 }
 
+/// Farthest (in widths of the wider wall) the open ends of two walls lie apart and are
+/// joined whatever order they were printed in ([`end_joins`]).
+const END_JOIN: f64 = 1.5;
+
+/// Joins each open end of a wall to the nearest open end of another wall of the same object
+/// within [`END_JOIN`] widths. Where poa's moved perimeter meets the slicer's perimeter it
+/// kept, their ends lie half a millimetre apart; joined only when printed one after the
+/// other, the outline of a hull's bow was closed or left open by the slit between them
+/// depending on the order poa laid its strands in, and the layer above found a region in
+/// the pocket behind the slit. Closed loops (their two ends together) take no part.
+fn end_joins(layer: &Layer, joins: &mut Vec<Path>) {
+    // (x, y, path, width) of every open wall end.
+    let mut ends: Vec<([f64; 2], usize, f64)> = Vec::new();
+    for (i, p) in layer.paths.iter().enumerate() {
+        if !is_wall(p.role) || p.points.len() < 2 || !(p.width > 0.0 && p.width < 50.0) {
+            continue;
+        }
+        let (a, b) = (p.points[0], p.points[p.points.len() - 1]);
+        if (a[0] - b[0]).hypot(a[1] - b[1]) <= 1e-6 {
+            continue;
+        }
+        for e in [a, b] {
+            if e[0].is_finite() && e[1].is_finite() {
+                ends.push((e, i, p.width));
+            }
+        }
+    }
+    if ends.len() < 2 {
+        return;
+    }
+    ends.sort_unstable_by(|x, y| x.0[0].total_cmp(&y.0[0]));
+    let widest = ends.iter().map(|e| e.2).fold(0.0, f64::max);
+    let reach = END_JOIN * widest;
+    // The nearest open end of another wall of the object, looked for on both sides in x.
+    let nearest = |k: usize| -> Option<usize> {
+        let (q, i, wq) = ends[k];
+        let mut best: Option<(f64, usize)> = None;
+        let lo = ends[..k].partition_point(|e| e.0[0] < q[0] - reach);
+        for (j, &(r, pj, wr)) in ends.iter().enumerate().skip(lo) {
+            if r[0] > q[0] + reach {
+                break;
+            }
+            if pj == i || layer.paths[pj].object != layer.paths[i].object {
+                continue;
+            }
+            let d = (r[0] - q[0]).hypot(r[1] - q[1]);
+            if d > 1e-6 && d <= END_JOIN * wq.max(wr) && best.is_none_or(|b| d < b.0) {
+                best = Some((d, j));
+            }
+        }
+        best.map(|b| b.1)
+    };
+    let near: Vec<Option<usize>> = (0..ends.len()).map(nearest).collect();
+    for (k, n) in near.iter().enumerate() {
+        let Some(j) = *n else { continue };
+        // Two ends that choose each other are joined once.
+        if near[j] == Some(k) && j < k {
+            continue;
+        }
+        let ((q, i, wq), (r, _, wr)) = (ends[k], ends[j]);
+        joins.push(join(&layer.paths[i], q, r, wq.min(wr)));
+    }
+}
+
 /// A join from `from` to `to` with the attributes of `wall` (whose strands it does not
 /// copy: this runs for every loop of every layer the proof reads).
 fn join(wall: &Path, from: [f64; 2], to: [f64; 2], width: f64) -> Path {
@@ -631,6 +695,21 @@ fn join(wall: &Path, from: [f64; 2], to: [f64; 2], width: f64) -> Path {
 /// The area a layer covers for the layer above, holes that are infill gaps closed.
 pub fn printed_area(layer: &Layer, opts: &AreaOptions) -> MultiPolygon<f64> {
     area_from_footprint(layer, outline_strands(layer).buffer(), opts)
+}
+
+/// [`printed_area`] of a layer poa rewrote, whose strands poa laid in an order of its own
+/// choosing: walls whose open ends meet are joined whatever order they were printed in
+/// ([`end_joins`]), so that the order poa picks does not change the outline the layer above
+/// is searched on.
+pub fn printed_area_any_order(layer: &Layer, opts: &AreaOptions) -> MultiPolygon<f64> {
+    if outline(layer) != Outline::Walls {
+        return printed_area(layer, opts);
+    }
+    let mut walls: Vec<&Path> = layer.paths.iter().filter(|p| is_outline(p.role)).collect();
+    let mut joins = wall_joins(layer);
+    end_joins(layer, &mut joins);
+    walls.extend(joins.iter());
+    area_from_footprint(layer, Strands::of(walls).buffer(), opts)
 }
 
 /// [`printed_area`] from the footprint of the layer's [`outline_strands`].
@@ -1291,6 +1370,77 @@ mod tests {
             a.unsigned_area()
         );
         assert!(a.0.iter().all(|p| p.interiors().is_empty()));
+    }
+
+    #[test]
+    fn a_rewritten_layer_s_walls_meeting_end_to_end_outline_it_whatever_their_order() {
+        // poa's moved perimeter meets the slicer's perimeter it kept 0.6 mm apart at both
+        // ends (a slit of 0.15 mm between the beads); solid infill fills the inside. Printed
+        // one after the other, the pieces were joined at one end only: the slit at the other
+        // opened the inside to the air, its infill became strays with gaps between them.
+        let w = 0.45;
+        let kept = || {
+            path(
+                Role::ExternalPerimeter,
+                w,
+                &[[0.0, 0.6], [0.0, 20.0], [30.0, 20.0]],
+            )
+        };
+        let moved = || {
+            path(
+                Role::OverhangPerimeter,
+                w,
+                &[[30.6, 20.0], [30.6, 19.4], [30.6, 0.0], [0.0, 0.0]],
+            )
+        };
+        let infill = || -> Vec<Path> {
+            (1..30)
+                .map(|i| {
+                    let x = i as f64;
+                    path(Role::SolidInfill, w, &[[x, 0.45], [x, 19.55]])
+                })
+                .collect()
+        };
+        let whole = 30.6 * 20.0;
+        for order in 0..3 {
+            let mut paths = match order {
+                0 => vec![kept(), moved()],
+                1 => vec![moved(), kept()],
+                _ => vec![kept()],
+            };
+            paths.extend(infill());
+            if order == 2 {
+                paths.push(moved());
+            }
+            let l = layer(paths);
+            // As the slicer printed them, the walls are joined only end to end in print order.
+            let sliced = printed_area(&l, &AreaOptions::default());
+            assert!(sliced.unsigned_area() < whole - 100.0, "order {order}");
+            let a = printed_area_any_order(&l, &AreaOptions::default());
+            assert!(
+                a.unsigned_area() > whole && a.0.iter().all(|p| p.interiors().is_empty()),
+                "order {order}: {} mm2, holes {}",
+                a.unsigned_area(),
+                a.0.iter().map(|p| p.interiors().len()).sum::<usize>()
+            );
+        }
+        // Ends farther apart than a width and a half are not taken as one wall.
+        let l = layer(vec![
+            path(Role::ExternalPerimeter, w, &[[0.0, 0.0], [10.0, 0.0]]),
+            path(Role::SolidInfill, w, &[[0.0, 5.0], [10.0, 5.0]]),
+            path(Role::ExternalPerimeter, w, &[[10.7, 0.0], [20.0, 0.0]]),
+        ]);
+        let mut joins = Vec::new();
+        end_joins(&l, &mut joins);
+        assert!(joins.is_empty(), "{joins:?}");
+        let l = layer(vec![
+            path(Role::ExternalPerimeter, w, &[[0.0, 0.0], [10.0, 0.0]]),
+            path(Role::SolidInfill, w, &[[0.0, 5.0], [10.0, 5.0]]),
+            path(Role::ExternalPerimeter, w, &[[10.6, 0.0], [20.0, 0.0]]),
+        ]);
+        end_joins(&l, &mut joins);
+        assert_eq!(joins.len(), 1, "{joins:?}");
+        assert_eq!(joins[0].points, vec![[10.0, 0.0], [10.6, 0.0]]);
     }
 
     fn layer(paths: Vec<Path>) -> Layer {

@@ -16,7 +16,10 @@ pub mod proof;
 pub mod regions;
 pub mod ring_index;
 
-pub use area::{footprint, footprint_if_spread, printed_area, rewritten_area, AreaOptions};
+pub use area::{
+    footprint, footprint_if_spread, printed_area, printed_area_any_order, rewritten_area,
+    AreaOptions,
+};
 pub use detect::{detect, read_ahead, Detected};
 pub use regions::{
     find_regions, find_regions_as_sliced, DetectOptions, Region, RegionKind, RoleExtrusion,
