@@ -498,6 +498,7 @@ pub(super) fn plan_in(
         .buffer();
         let zone = intersection(&zone, &along_new);
         arrange(&mut strands, start);
+        split_perimeters(&mut strands, start);
         return Plan {
             zone,
             strands,
@@ -1833,6 +1834,152 @@ fn arrange(strands: &mut Vec<Strand>, start: [f64; 2]) {
     sequence(strands, start);
 }
 
+/// Travel (in widths) a cut in a gradual overhang's perimeter must save to be made
+/// ([`split_perimeters`]): each cut is one more seam in the part's outer wall.
+const PERIMETER_CUT_SAVES: f64 = 4.0;
+
+/// Most sample points times loop points [`split_perimeters`] measures.
+const PERIMETER_CUT_WORK: usize = 4_000_000;
+
+/// A gradual overhang's perimeter cut where the loops it must follow change, so that
+/// [`sequence`] can lay the stretches no loop lies beside as the nozzle passes them. A hull's
+/// bow: loop 1 along both sides, loop 2 at the bow only, the perimeter along both sides;
+/// laid whole after loop 2, the perimeter began at one side's far end, two hops the length
+/// of a side (13.6 mm of travel for 32.9 mm of loops); cut, one side's perimeter follows
+/// loop 1 there, loop 2 follows it, and the rest of the perimeter loop 2. A stretch leans on
+/// every loop within two widths of it (as in [`sequence`]), so it is still laid after each
+/// of them. Stretches laid one after the other are joined again; the cuts are kept only
+/// where each saves [`PERIMETER_CUT_SAVES`] widths of travel.
+fn split_perimeters(strands: &mut Vec<Strand>, start: [f64; 2]) {
+    let n = strands.len();
+    if !(2..MAX_SEQUENCED).contains(&n) {
+        return;
+    }
+    let open = |s: &Strand| s.points.len() >= 2 && !is_closed(&s.points);
+    let lines: Vec<(usize, f64)> = strands
+        .iter()
+        .enumerate()
+        .filter(|(_, s)| s.kind == StrandKind::Loop && s.points.len() >= 2)
+        .map(|(i, s)| (i, s.width))
+        .collect();
+    if lines.is_empty() {
+        return;
+    }
+    let loop_points: usize = lines.iter().map(|&(i, _)| strands[i].points.len()).sum();
+    let near = |q: [f64; 2], j: usize, g: f64| {
+        strands[j].points.windows(2).any(|seg| {
+            let (_, m) = crate::geometry::nearest_on_segment(q, seg[0], seg[1]);
+            dist2(q, m) <= g * g
+        })
+    };
+    let mut out: Vec<Strand> = Vec::with_capacity(MAX_SEQUENCED);
+    let mut cut = false;
+    for s in strands.iter() {
+        if s.kind != StrandKind::Perimeter || !open(s) {
+            out.push(s.clone());
+            continue;
+        }
+        let cum = running_lengths(&s.points);
+        let total = cum[cum.len() - 1];
+        let spacing = s.width / 4.0;
+        let samples = (total / spacing).ceil() as usize + 1;
+        if samples.saturating_mul(loop_points) > PERIMETER_CUT_WORK || total < 4.0 * s.width {
+            out.push(s.clone());
+            continue;
+        }
+        // The loops each sample lies beside (a bit set over `lines`), measured a sample's
+        // spacing farther, so that all the stretch between two samples counts.
+        let mask = |t: f64| -> u32 {
+            let q = point_along(&s.points, &cum, t);
+            lines
+                .iter()
+                .enumerate()
+                .filter(|&(_, &(j, wj))| near(q, j, 2.0 * s.width.max(wj) + spacing))
+                .fold(0u32, |m, (b, _)| m | 1 << b)
+        };
+        // Runs of equal sets: (from mm, set); a run ends where the next set is first seen.
+        let mut runs: Vec<(f64, u32)> = Vec::new();
+        for k in 0..samples {
+            let t = (k as f64 * spacing).min(total);
+            let m = mask(t);
+            if runs.last().is_none_or(|r| r.1 != m) {
+                runs.push((if runs.is_empty() { 0.0 } else { t }, m));
+            }
+        }
+        // Stretches shorter than two widths join the one before (or after), leaning on the
+        // loops of both.
+        let mut k = 0;
+        while runs.len() > 1 && k < runs.len() {
+            let end = runs.get(k + 1).map_or(total, |r| r.0);
+            if end - runs[k].0 >= 2.0 * s.width {
+                k += 1;
+                continue;
+            }
+            let m = runs[k].1;
+            if k > 0 {
+                runs[k - 1].1 |= m;
+                runs.remove(k);
+            } else {
+                runs[1].1 |= m;
+                runs[1].0 = 0.0;
+                runs.remove(0);
+            }
+            // Neighbours with equal sets are one stretch.
+            let mut i = 1;
+            while i < runs.len() {
+                if runs[i].1 == runs[i - 1].1 {
+                    runs.remove(i);
+                } else {
+                    i += 1;
+                }
+            }
+            k = 0;
+        }
+        if runs.len() < 2 || out.len() + runs.len() + (n - out.len() - 1) > MAX_SEQUENCED {
+            out.push(s.clone());
+            continue;
+        }
+        cut = true;
+        for (r, &(from, _)) in runs.iter().enumerate() {
+            let to = runs.get(r + 1).map_or(total, |x| x.0);
+            out.push(Strand {
+                points: sub_polyline(&s.points, &cum, from, to),
+                ..s.clone()
+            });
+        }
+    }
+    if !cut {
+        return;
+    }
+    let before = travel_of(strands, start);
+    let pieces = |v: &[Strand]| v.iter().filter(|s| s.kind == StrandKind::Perimeter).count();
+    let was = pieces(strands);
+    arrange(&mut out, start);
+    // Stretches laid end to end are one strand again.
+    let mut joined: Vec<Strand> = Vec::with_capacity(out.len());
+    for s in out {
+        match joined.last_mut() {
+            Some(last)
+                if last.kind == StrandKind::Perimeter
+                    && s.kind == StrandKind::Perimeter
+                    && last.points.last() == s.points.first() =>
+            {
+                last.points.extend_from_slice(&s.points[1..]);
+            }
+            _ => joined.push(s),
+        }
+    }
+    let cuts = pieces(&joined).saturating_sub(was);
+    let w = strands.iter().map(|s| s.width).fold(0.0, f64::max);
+    // The hops between strands (the travel inside the region) must fall by the cuts' due,
+    // and the way in from `start` must not eat the saving.
+    let inner = |v: &[Strand]| v.first().map_or(0.0, |f| travel_of(v, f.points[0]));
+    let saved = inner(strands) - inner(&joined);
+    if saved > cuts as f64 * PERIMETER_CUT_SAVES * w && travel_of(&joined, start) < before - 1e-6 {
+        *strands = joined;
+    }
+}
+
 /// Travel from `start` through `strands` as laid.
 fn travel_of(strands: &[Strand], start: [f64; 2]) -> f64 {
     let mut at = start;
@@ -2686,6 +2833,89 @@ mod tests {
             travel <= 0.10 * length,
             "travel {travel:.1} mm for {length:.1} mm of loops"
         );
+    }
+
+    /// A U along two arms and round a bow at (10, 0): arms `r` either side of y = 0 from
+    /// x = 0 to 10, the bow a half circle of radius `r`; only the bow where `bow_only`.
+    fn bow(r: f64, bow_only: bool) -> Polyline {
+        let mut p = Vec::new();
+        if !bow_only {
+            p.push([0.0, -r]);
+        }
+        for k in 0..=32 {
+            let a = -std::f64::consts::FRAC_PI_2 + std::f64::consts::PI * k as f64 / 32.0;
+            p.push([10.0 + r * a.cos(), r * a.sin()]);
+        }
+        if !bow_only {
+            p.push([0.0, r]);
+        }
+        p
+    }
+
+    #[test]
+    fn a_gradual_perimeter_is_laid_in_stretches_as_the_loops_it_leans_on_are_laid() {
+        // A hull's bow: loop 1 along both sides and round the bow, loop 2 round the bow only,
+        // the perimeter outside both along the sides and round the bow. Laid whole after
+        // loop 2, the perimeter starts at one side's far end: two hops the length of a side.
+        let strand = |kind, loop_index, points| Strand {
+            kind,
+            loop_index,
+            points,
+            width: W,
+        };
+        let start = [0.0, -2.0];
+        let mut plan = vec![
+            strand(StrandKind::Loop, 1, bow(2.0, false)),
+            strand(StrandKind::Loop, 2, bow(2.35, true)),
+            strand(StrandKind::Perimeter, 0, bow(2.7, false)),
+        ];
+        arrange(&mut plan, start);
+        let before = travel_of(&plan, start);
+        let perimeter = polyline_length(&bow(2.7, false));
+        let mut cut = plan.clone();
+        split_perimeters(&mut cut, start);
+        let after = travel_of(&cut, start);
+        assert!(
+            before > 15.0 && after < 0.4 * before,
+            "{before:.1} -> {after:.1} mm"
+        );
+        // Nothing of the perimeter lost or laid twice.
+        let laid: f64 = cut
+            .iter()
+            .filter(|s| s.kind == StrandKind::Perimeter)
+            .map(|s| s.length())
+            .sum();
+        assert!((laid - perimeter).abs() < 1e-6, "{laid} vs {perimeter}");
+        // Every point of the perimeter within two widths of a loop is laid after that loop,
+        // and loop 2 after loop 1 wherever it lies beside it.
+        let near = |p: [f64; 2], s: &Strand| {
+            s.points.windows(2).any(|g| {
+                let (_, m) = crate::geometry::nearest_on_segment(p, g[0], g[1]);
+                dist2(p, m) <= (2.0 * W) * (2.0 * W)
+            })
+        };
+        for (i, s) in cut.iter().enumerate() {
+            for (j, t) in cut.iter().enumerate() {
+                let leans = match (s.kind, t.kind) {
+                    (StrandKind::Perimeter, StrandKind::Loop) => true,
+                    (StrandKind::Loop, StrandKind::Loop) => s.loop_index > t.loop_index,
+                    _ => false,
+                };
+                if leans && s.points.iter().any(|&p| near(p, t)) {
+                    assert!(
+                        j < i,
+                        "strand {i} ({:?}) laid before strand {j} it leans on",
+                        s.kind
+                    );
+                }
+            }
+        }
+        // The stretches laid one after the other are one strand: at most three pieces.
+        let pieces = cut
+            .iter()
+            .filter(|s| s.kind == StrandKind::Perimeter)
+            .count();
+        assert!((2..=3).contains(&pieces), "{pieces} pieces");
     }
 
     #[test]
