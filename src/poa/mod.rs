@@ -1090,7 +1090,7 @@ fn assemble(
     let early = interleave(&strands, &contour, &perimeter, (w, we), prefix.len(), below);
     strands.extend(finish_order(contour, perimeter, w, we, &mut at));
     arrange(&mut strands, start);
-    match early {
+    let mut laid = match early {
         Some(mut e) => {
             arrange(&mut e, start);
             // Rings' seams on held points are worth a little travel.
@@ -1101,7 +1101,9 @@ fn assemble(
             }
         }
         None => strands,
-    }
+    };
+    split_perimeters(&mut laid, start);
+    laid
 }
 
 /// Travel (in widths) a plan whose rings start on held points may add to the one whose rings
@@ -1825,7 +1827,7 @@ fn cut_ring(p: &mut Polyline, i: usize, t: f64) {
 }
 
 /// Most strands [`sequence`] orders exactly: its table has 2^n x n x 2 entries.
-const MAX_SEQUENCED: usize = 10;
+const MAX_SEQUENCED: usize = 12;
 
 /// A plan's strands laid in the order and directions of least travel from `start`:
 /// [`orient`], then, for a plan of at most [`MAX_SEQUENCED`] strands, [`sequence`].
@@ -1841,25 +1843,28 @@ const PERIMETER_CUT_SAVES: f64 = 4.0;
 /// Most sample points times loop points [`split_perimeters`] measures.
 const PERIMETER_CUT_WORK: usize = 4_000_000;
 
-/// A gradual overhang's perimeter cut where the loops it must follow change, so that
-/// [`sequence`] can lay the stretches no loop lies beside as the nozzle passes them. A hull's
-/// bow: loop 1 along both sides, loop 2 at the bow only, the perimeter along both sides;
-/// laid whole after loop 2, the perimeter began at one side's far end, two hops the length
-/// of a side (13.6 mm of travel for 32.9 mm of loops); cut, one side's perimeter follows
-/// loop 1 there, loop 2 follows it, and the rest of the perimeter loop 2. A stretch leans on
-/// every loop within two widths of it (as in [`sequence`]), so it is still laid after each
-/// of them. Stretches laid one after the other are joined again; the cuts are kept only
-/// where each saves [`PERIMETER_CUT_SAVES`] widths of travel.
+/// A small plan's open contour and perimeter strands cut where the strands they must follow
+/// change, so that [`sequence`] can lay each stretch as the nozzle passes it. A hull's bow
+/// (a gradual overhang): loop 1 along both sides, loop 2 at the bow only, the perimeter along
+/// both sides; laid whole after loop 2, the perimeter began at one side's far end, two hops
+/// the length of a side (13.6 mm of travel for 32.9 mm of loops); cut, one side's perimeter
+/// follows loop 1 there, loop 2 follows it, and the rest of the perimeter loop 2. A stretch
+/// leans on every strand of an earlier kind (loops, then the contour) within two widths of
+/// it, as in [`sequence`], so it is still laid after each of them. Stretches laid one after
+/// the other are joined again; the cuts are kept only where each saves
+/// [`PERIMETER_CUT_SAVES`] widths of travel between strands.
 fn split_perimeters(strands: &mut Vec<Strand>, start: [f64; 2]) {
     let n = strands.len();
     if !(2..MAX_SEQUENCED).contains(&n) {
         return;
     }
     let open = |s: &Strand| s.points.len() >= 2 && !is_closed(&s.points);
+    // What a stretch may lean on: every strand of a kind laid before its own (loops before
+    // the contour, both before the perimeter).
     let lines: Vec<(usize, f64)> = strands
         .iter()
         .enumerate()
-        .filter(|(_, s)| s.kind == StrandKind::Loop && s.points.len() >= 2)
+        .filter(|(_, s)| s.kind != StrandKind::Perimeter && s.points.len() >= 2)
         .map(|(i, s)| (i, s.width))
         .collect();
     if lines.is_empty() {
@@ -1874,8 +1879,8 @@ fn split_perimeters(strands: &mut Vec<Strand>, start: [f64; 2]) {
     };
     let mut out: Vec<Strand> = Vec::with_capacity(MAX_SEQUENCED);
     let mut cut = false;
-    for s in strands.iter() {
-        if s.kind != StrandKind::Perimeter || !open(s) {
+    for (i, s) in strands.iter().enumerate() {
+        if s.kind == StrandKind::Loop || !open(s) {
             out.push(s.clone());
             continue;
         }
@@ -1894,6 +1899,7 @@ fn split_perimeters(strands: &mut Vec<Strand>, start: [f64; 2]) {
             lines
                 .iter()
                 .enumerate()
+                .filter(|&(_, &(j, _))| (strands[j].kind as usize) < (s.kind as usize))
                 .filter(|&(_, &(j, wj))| near(q, j, 2.0 * s.width.max(wj) + spacing))
                 .fold(0u32, |m, (b, _)| m | 1 << b)
         };
@@ -1906,36 +1912,41 @@ fn split_perimeters(strands: &mut Vec<Strand>, start: [f64; 2]) {
                 runs.push((if runs.is_empty() { 0.0 } else { t }, m));
             }
         }
-        // Stretches shorter than two widths join the one before (or after), leaning on the
-        // loops of both.
-        let mut k = 0;
-        while runs.len() > 1 && k < runs.len() {
-            let end = runs.get(k + 1).map_or(total, |r| r.0);
-            if end - runs[k].0 >= 2.0 * s.width {
-                k += 1;
-                continue;
-            }
-            let m = runs[k].1;
-            if k > 0 {
-                runs[k - 1].1 |= m;
-                runs.remove(k);
+        // Stretch `k` joined to the neighbour whose strands it shares most of (the one
+        // before on a tie), leaning on the strands of both; neighbours with equal sets are
+        // one stretch.
+        let merge = |runs: &mut Vec<(f64, u32)>, k: usize| {
+            let share = |o: usize| (runs[o].1 & runs[k].1).count_ones();
+            let into = if k == 0 {
+                1
+            } else if k + 1 < runs.len() && share(k + 1) > share(k - 1) {
+                k + 1
             } else {
-                runs[1].1 |= m;
-                runs[1].0 = 0.0;
-                runs.remove(0);
+                k - 1
+            };
+            runs[into].1 |= runs[k].1;
+            if into > k {
+                runs[into].0 = runs[k].0;
             }
-            // Neighbours with equal sets are one stretch.
-            let mut i = 1;
-            while i < runs.len() {
-                if runs[i].1 == runs[i - 1].1 {
-                    runs.remove(i);
-                } else {
-                    i += 1;
-                }
-            }
-            k = 0;
+            runs.remove(k);
+            runs.dedup_by(|b, a| a.1 == b.1);
+        };
+        let length =
+            |runs: &[(f64, u32)], k: usize| runs.get(k + 1).map_or(total, |r| r.0) - runs[k].0;
+        // Stretches shorter than two widths go first; then the shortest until the plan fits
+        // the sequencer.
+        while let Some(k) =
+            (0..runs.len()).find(|&k| runs.len() > 1 && length(&runs, k) < 2.0 * s.width)
+        {
+            merge(&mut runs, k);
         }
-        if runs.len() < 2 || out.len() + runs.len() + (n - out.len() - 1) > MAX_SEQUENCED {
+        while runs.len() > 1 && out.len() + runs.len() + (n - i - 1) > MAX_SEQUENCED {
+            let k = (0..runs.len())
+                .min_by(|&a, &b| length(&runs, a).total_cmp(&length(&runs, b)))
+                .unwrap_or(0);
+            merge(&mut runs, k);
+        }
+        if runs.len() < 2 || out.len() + runs.len() + (n - i - 1) > MAX_SEQUENCED {
             out.push(s.clone());
             continue;
         }
@@ -1952,7 +1963,7 @@ fn split_perimeters(strands: &mut Vec<Strand>, start: [f64; 2]) {
         return;
     }
     let before = travel_of(strands, start);
-    let pieces = |v: &[Strand]| v.iter().filter(|s| s.kind == StrandKind::Perimeter).count();
+    let pieces = |v: &[Strand]| v.iter().filter(|s| s.kind != StrandKind::Loop).count();
     let was = pieces(strands);
     arrange(&mut out, start);
     // Stretches laid end to end are one strand again.
@@ -1960,8 +1971,8 @@ fn split_perimeters(strands: &mut Vec<Strand>, start: [f64; 2]) {
     for s in out {
         match joined.last_mut() {
             Some(last)
-                if last.kind == StrandKind::Perimeter
-                    && s.kind == StrandKind::Perimeter
+                if last.kind != StrandKind::Loop
+                    && s.kind == last.kind
                     && last.points.last() == s.points.first() =>
             {
                 last.points.extend_from_slice(&s.points[1..]);
@@ -2853,7 +2864,7 @@ mod tests {
     }
 
     #[test]
-    fn a_gradual_perimeter_is_laid_in_stretches_as_the_loops_it_leans_on_are_laid() {
+    fn a_perimeter_is_laid_in_stretches_as_the_strands_it_leans_on_are_laid() {
         // A hull's bow: loop 1 along both sides and round the bow, loop 2 round the bow only,
         // the perimeter outside both along the sides and round the bow. Laid whole after
         // loop 2, the perimeter starts at one side's far end: two hops the length of a side.
@@ -2863,10 +2874,23 @@ mod tests {
             points,
             width: W,
         };
+        // The same with a contour round the bow in place of loop 2 (a region's plan).
+        for (kind, index) in [(StrandKind::Loop, 2), (StrandKind::Contour, 0)] {
+            bow_plan(strand(kind, index, bow(2.35, true)));
+        }
+    }
+
+    fn bow_plan(bow_only: Strand) {
+        let strand = |kind, loop_index, points| Strand {
+            kind,
+            loop_index,
+            points,
+            width: W,
+        };
         let start = [0.0, -2.0];
         let mut plan = vec![
             strand(StrandKind::Loop, 1, bow(2.0, false)),
-            strand(StrandKind::Loop, 2, bow(2.35, true)),
+            bow_only,
             strand(StrandKind::Perimeter, 0, bow(2.7, false)),
         ];
         arrange(&mut plan, start);
@@ -2897,9 +2921,8 @@ mod tests {
         for (i, s) in cut.iter().enumerate() {
             for (j, t) in cut.iter().enumerate() {
                 let leans = match (s.kind, t.kind) {
-                    (StrandKind::Perimeter, StrandKind::Loop) => true,
                     (StrandKind::Loop, StrandKind::Loop) => s.loop_index > t.loop_index,
-                    _ => false,
+                    (a, b) => (b as usize) < (a as usize),
                 };
                 if leans && s.points.iter().any(|&p| near(p, t)) {
                     assert!(
