@@ -1840,7 +1840,8 @@ fn arrange(strands: &mut Vec<Strand>, start: [f64; 2]) {
 /// ([`split_perimeters`]): each cut is one more seam in the part's outer wall.
 const PERIMETER_CUT_SAVES: f64 = 4.0;
 
-/// Most sample points times loop points [`split_perimeters`] measures.
+/// Most sample points times points of the strands they are measured against that
+/// [`split_perimeters`] spends on one plan.
 const PERIMETER_CUT_WORK: usize = 4_000_000;
 
 /// A small plan's open contour and perimeter strands cut where the strands they must follow
@@ -1879,6 +1880,8 @@ fn split_perimeters(strands: &mut Vec<Strand>, start: [f64; 2]) {
     };
     let mut out: Vec<Strand> = Vec::with_capacity(MAX_SEQUENCED);
     let mut cut = false;
+    // Sample-to-point distances measured so far, for the whole plan.
+    let mut work = 0usize;
     for (i, s) in strands.iter().enumerate() {
         if s.kind == StrandKind::Loop || !open(s) {
             out.push(s.clone());
@@ -1888,7 +1891,8 @@ fn split_perimeters(strands: &mut Vec<Strand>, start: [f64; 2]) {
         let total = cum[cum.len() - 1];
         let spacing = s.width / 4.0;
         let samples = (total / spacing).ceil() as usize + 1;
-        if samples.saturating_mul(loop_points) > PERIMETER_CUT_WORK || total < 4.0 * s.width {
+        work = work.saturating_add(samples.saturating_mul(loop_points));
+        if work > PERIMETER_CUT_WORK || total < 4.0 * s.width {
             out.push(s.clone());
             continue;
         }
