@@ -547,12 +547,7 @@ pub fn outline_strands(layer: &Layer) -> Strands {
     match outline(layer) {
         // Perimeters and the other strands outline the part; what infill fills is closed in
         // by hole filling instead of being buffered strand by strand (the costly part).
-        Outline::Walls => {
-            let mut walls: Vec<&Path> = layer.paths.iter().filter(|p| is_outline(p.role)).collect();
-            let joins = wall_joins(layer);
-            walls.extend(joins.iter());
-            Strands::of(walls)
-        }
+        Outline::Walls => walls_and_joins(layer, false),
         Outline::Infill => Strands::of(
             layer
                 .paths
@@ -705,11 +700,19 @@ pub fn printed_area_any_order(layer: &Layer, opts: &AreaOptions) -> MultiPolygon
     if outline(layer) != Outline::Walls {
         return printed_area(layer, opts);
     }
+    area_from_footprint(layer, walls_and_joins(layer, true).buffer(), opts)
+}
+
+/// A layer's outline strands when it tells walls apart, with the joins across interrupted
+/// walls ([`wall_joins`]; with `any_order`, [`end_joins`] too).
+fn walls_and_joins(layer: &Layer, any_order: bool) -> Strands {
     let mut walls: Vec<&Path> = layer.paths.iter().filter(|p| is_outline(p.role)).collect();
     let mut joins = wall_joins(layer);
-    end_joins(layer, &mut joins);
+    if any_order {
+        end_joins(layer, &mut joins);
+    }
     walls.extend(joins.iter());
-    area_from_footprint(layer, Strands::of(walls).buffer(), opts)
+    Strands::of(walls)
 }
 
 /// [`printed_area`] from the footprint of the layer's [`outline_strands`].

@@ -2872,19 +2872,15 @@ mod tests {
         // A hull's bow: loop 1 along both sides and round the bow, loop 2 round the bow only,
         // the perimeter outside both along the sides and round the bow. Laid whole after
         // loop 2, the perimeter starts at one side's far end: two hops the length of a side.
-        let strand = |kind, loop_index, points| Strand {
-            kind,
-            loop_index,
-            points,
-            width: W,
-        };
         // The same with a contour round the bow in place of loop 2 (a region's plan).
-        for (kind, index) in [(StrandKind::Loop, 2), (StrandKind::Contour, 0)] {
-            bow_plan(strand(kind, index, bow(2.35, true)));
+        for bow_only in [(StrandKind::Loop, 2), (StrandKind::Contour, 0)] {
+            bow_plan(bow_only);
         }
     }
 
-    fn bow_plan(bow_only: Strand) {
+    /// [`a_perimeter_is_laid_in_stretches_as_the_strands_it_leans_on_are_laid`] with a strand
+    /// of this kind and loop number round the bow only.
+    fn bow_plan((kind, index): (StrandKind, usize)) {
         let strand = |kind, loop_index, points| Strand {
             kind,
             loop_index,
@@ -2894,7 +2890,7 @@ mod tests {
         let start = [0.0, -2.0];
         let mut plan = vec![
             strand(StrandKind::Loop, 1, bow(2.0, false)),
-            bow_only,
+            strand(kind, index, bow(2.35, true)),
             strand(StrandKind::Perimeter, 0, bow(2.7, false)),
         ];
         arrange(&mut plan, start);
