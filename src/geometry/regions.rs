@@ -183,6 +183,21 @@ pub struct Region {
 
 /// Spacing of the samples along a region's boundary when measuring anchoring (mm).
 const ANCHOR_STEP: f64 = 0.2;
+/// Most samples along one region's boundary: a boundary longer than this many steps (20 m
+/// at [`ANCHOR_STEP`]: only a damaged file's strands, a move to X 99999, make one) is sampled
+/// more sparsely, so a region's judgement costs bounded time (hours before, for 700 such
+/// regions).
+const MAX_ANCHOR_SAMPLES: f64 = 1.0e5;
+
+/// [`ANCHOR_STEP`], or coarser for boundaries longer than [`MAX_ANCHOR_SAMPLES`] steps.
+fn anchor_step<'a>(rings: impl IntoIterator<Item = &'a LineString<f64>>) -> f64 {
+    let length: f64 = rings
+        .into_iter()
+        .flat_map(|r| r.0.windows(2))
+        .map(|w| (w[1].x - w[0].x).hypot(w[1].y - w[0].y))
+        .sum();
+    ANCHOR_STEP.max(length / MAX_ANCHOR_SAMPLES)
+}
 /// Extra reach of the anchor zone beyond the tolerance, covering offset and opening rounding.
 const ANCHOR_SLACK: f64 = 0.15;
 
@@ -485,15 +500,17 @@ fn anchored_stretches(
     }
     // (inside, length of the sample's share of the ring)
     let mut samples: Vec<(bool, f64)> = Vec::new();
+    let step = anchor_step([ring]);
+    let (mut ts, mut inside) = (Vec::new(), Vec::new());
     for w in ring.0.windows(2) {
         let (a, b) = (w[0], w[1]);
         let len = ((b.x - a.x).powi(2) + (b.y - a.y).powi(2)).sqrt();
-        let n = ((len / ANCHOR_STEP).ceil() as usize).max(1);
-        for k in 0..n {
-            let t = (k as f64 + 0.5) / n as f64;
-            let p = [a.x + (b.x - a.x) * t, a.y + (b.y - a.y) * t];
-            samples.push((zone.contains_strictly(p), len / n as f64));
-        }
+        let n = ((len / step).ceil() as usize).max(1);
+        ts.clear();
+        ts.extend((0..n).map(|k| (k as f64 + 0.5) / n as f64));
+        inside.clear();
+        zone.contains_strictly_along([a.x, a.y], [b.x, b.y], &ts, &mut inside);
+        samples.extend(inside.iter().map(|&i| (i, len / n as f64)));
     }
     if samples.iter().all(|s| s.0) {
         let total: f64 = samples.iter().map(|s| s.1).sum();
@@ -523,11 +540,12 @@ fn anchored_stretches(
 fn cantilevered(polygon: &Polygon<f64>, zone: &MultiPolygon<f64>, w: f64) -> bool {
     use geo::ConvexHull;
     let mut anchored: Vec<Point<f64>> = Vec::new();
+    let step = anchor_step(std::iter::once(polygon.exterior()).chain(polygon.interiors()));
     for ring in std::iter::once(polygon.exterior()).chain(polygon.interiors()) {
         for seg in ring.0.windows(2) {
             let (a, b) = (seg[0], seg[1]);
             let len = ((b.x - a.x).powi(2) + (b.y - a.y).powi(2)).sqrt();
-            let n = ((len / ANCHOR_STEP).ceil() as usize).clamp(1, 100_000);
+            let n = ((len / step).ceil() as usize).clamp(1, 100_000);
             for k in 0..=n {
                 let t = k as f64 / n as f64;
                 let p = Point::new(a.x + (b.x - a.x) * t, a.y + (b.y - a.y) * t);
