@@ -172,6 +172,8 @@ where
             let mut bundle_w = 0;
             let mut layers = layers.peekable();
             while let Some(l) = layers.next() {
+                // A layer spread over metres is refused before any geometry is built on it.
+                let l = l.and_then(|l| l.check_span().map(|()| l));
                 let failed = l.is_err();
                 bundle_w += l.as_ref().map_or(0, weight);
                 bundle.push(l);

@@ -155,7 +155,58 @@ pub struct Layer {
     pub objects: Option<Vec<String>>,
 }
 
+/// Widest span (mm), in X or in Y, of one layer's extrusions that poa takes for a print: no
+/// printer's bed is wider. Strands metres apart (a mistyped X 99999 on a tenth of the lines,
+/// relative moves left on) are a damaged file, and they made the region search and the
+/// deposition check, whose work grows with the area the strands span, take minutes and
+/// gigabytes for a 200 kB file.
+pub const MAX_LAYER_SPAN: f64 = 2000.0;
+
 impl Layer {
+    /// An error naming the farthest-out extrusion when the layer's extrusions span more than
+    /// [`MAX_LAYER_SPAN`] in X or in Y.
+    pub fn check_span(&self) -> io::Result<()> {
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for q in self.paths.iter().flat_map(|p| p.points.iter()) {
+            for k in 0..2 {
+                lo[k] = lo[k].min(q[k]);
+                hi[k] = hi[k].max(q[k]);
+            }
+        }
+        let Some(k) = (0..2).find(|&k| hi[k] - lo[k] > MAX_LAYER_SPAN) else {
+            return Ok(());
+        };
+        // The point farthest from the layer's median on that axis: the damaged move.
+        let mut values: Vec<f64> = self
+            .paths
+            .iter()
+            .flat_map(|p| p.points.iter().map(move |q| q[k]))
+            .collect();
+        let mid = values.len() / 2;
+        let median = *values.select_nth_unstable_by(mid, f64::total_cmp).1;
+        let mut worst = (0.0, [0.0; 2], self.first_line);
+        for p in &self.paths {
+            for (i, q) in p.points.iter().enumerate() {
+                let d = (q[k] - median).abs();
+                if d > worst.0 {
+                    let line = p.seg_line.get(i.saturating_sub(1)).copied();
+                    worst = (d, *q, line.unwrap_or(self.first_line));
+                }
+            }
+        }
+        let (_, q, line) = worst;
+        Err(io::Error::new(
+            io::ErrorKind::InvalidData,
+            format!(
+                "line {line}: an extrusion to X{:.1} Y{:.1} spreads the layer at Z {:.2} over {:.0} mm, more than any printer's bed ({MAX_LAYER_SPAN:.0} mm): the file looks damaged (a mistyped number? G91 left on?); poa leaves it as it is",
+                q[0],
+                q[1],
+                self.z,
+                hi[k] - lo[k]
+            ),
+        ))
+    }
+
     pub fn line_count(&self) -> u64 {
         (self.last_line + 1).saturating_sub(self.first_line)
     }
