@@ -427,30 +427,24 @@ mod tests {
             segs.push(([f * 0.55 - 2.0, -1.0], [21.0 - f * 0.5, 8.0 + f * 0.07]));
             segs.push(([6.0, f * 0.25], [6.0 + f * 0.3, 11.0 - f * 0.25]));
         }
+        // Sampled at the middles of n pieces, and at parameters landing on the boundary.
+        let mut params: Vec<Vec<f64>> = [1, 3, 7, 50, 997]
+            .iter()
+            .map(|&n| (0..n).map(|k| (k as f64 + 0.5) / n as f64).collect())
+            .collect();
+        params.push((0..=100).map(|k| k as f64 / 100.0).collect());
         for (a, b) in segs {
-            for n in [1, 3, 7, 50, 997] {
-                let ts: Vec<f64> = (0..n).map(|k| (k as f64 + 0.5) / n as f64).collect();
+            for ts in &params {
                 let mut got = Vec::new();
-                idx.contains_strictly_along(a, b, &ts, &mut got);
+                idx.contains_strictly_along(a, b, ts, &mut got);
                 let want: Vec<bool> = ts
                     .iter()
                     .map(|&t| {
                         idx.contains_strictly([a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])])
                     })
                     .collect();
-                assert_eq!(got, want, "{a:?} {b:?} {n}");
+                assert_eq!(got, want, "{a:?} {b:?} {}", ts.len());
             }
-            // Parameters landing on the boundary itself.
-            let ts: Vec<f64> = (0..=100).map(|k| k as f64 / 100.0).collect();
-            let mut got = Vec::new();
-            idx.contains_strictly_along(a, b, &ts, &mut got);
-            let want: Vec<bool> = ts
-                .iter()
-                .map(|&t| {
-                    idx.contains_strictly([a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])])
-                })
-                .collect();
-            assert_eq!(got, want, "{a:?} {b:?} on");
         }
     }
 
