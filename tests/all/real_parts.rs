@@ -504,6 +504,43 @@ fn the_second_layer_stands_on_the_first_layer_squashed_out() {
     held_up("hull by PrusaSlicer", &before, &after, 5.0);
 }
 
+/// PrusaSlicer's bare defaults (no printer profile: 0.3 mm layers, widths automatic, the
+/// first layer 200 % wide, 0.7 mm for 0.45 mm walls, no elephant-foot compensation): the
+/// hull's second and third layers flare past the first. Their plans took the first layer's
+/// wall width (the median of the layers seen so far), pulled the perimeter in by 0.35 mm
+/// instead of 0.225, off the stern's thin ring, and left it as sliced there, 0.17 mm past
+/// the first layer's edge: 39 mm in air on layer 2 after the rewrite, 77 before.
+#[test]
+fn a_wide_first_layer_does_not_set_the_width_of_the_layers_above() {
+    if !have_prusaslicer() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("hull.gcode");
+    let o = std::process::Command::new("prusa-slicer")
+        .arg("--export-gcode")
+        .arg("-o")
+        .arg(&out)
+        .arg(part("hull"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let d = std::fs::read(&out).unwrap();
+    let (new, _) = rewrite(&d, BridgeMode::Auto);
+    let (before, after) = (check(&d), check(&new));
+    for l in 1..3 {
+        let (b, a) = (&before.layers[l], &after.layers[l]);
+        assert!(b.in_air_mm > 10.0, "{b:?}");
+        assert!(
+            a.in_air_mm <= 0.1 * b.in_air_mm,
+            "layer {}: {:.1} mm in air, {:.1} before",
+            b.layer,
+            a.in_air_mm,
+            b.in_air_mm
+        );
+    }
+}
+
 /// The hull with one perimeter round a honeycomb infill and a 0.6 mm nozzle: the layer above
 /// a moved perimeter is searched on the layer as rewritten and read back, where strands cut
 /// at a zone's edge split the infill's outline into pockets left open. The honeycomb's cells
