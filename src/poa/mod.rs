@@ -210,6 +210,8 @@ impl Default for Others {
 /// simplified by 2 um (the layer's before its closing). Everything the planner knows of
 /// `below` and `area` comes from these.
 pub(super) struct Windows {
+    /// The region and the floating regions it absorbs.
+    pub region: MultiPolygon<f64>,
     pub hint: MultiPolygon<f64>,
     pub below: MultiPolygon<f64>,
     pub area: MultiPolygon<f64>,
@@ -258,6 +260,7 @@ pub(super) fn windows(
         ZONE_SIMPLIFY,
     );
     Some(Windows {
+        region: region_mp,
         hint,
         below: below_loc,
         area: area_cut,
@@ -316,6 +319,15 @@ pub(super) fn plan_in(
     );
     if !others.keep_out.0.is_empty() {
         zone = difference(&zone, &offset(&others.keep_out, 0.01));
+    }
+    // Pieces of the zone that do not touch the region are another region's, or lie within
+    // the tolerance of the layer below all over: the two sides of a slot closing over a
+    // bolt hole, half a millimetre apart, each planned the other's side too, and each side's
+    // perimeter was laid twice, once in air before that side's loop.
+    {
+        use geo::Intersects;
+        zone.0
+            .retain(|p| win.region.0.iter().any(|r| p.intersects(r)));
     }
     if zone.unsigned_area() <= 0.0 {
         return no_plan(zone);
@@ -3224,6 +3236,34 @@ mod tests {
                             s.loop_index,
                         );
                     }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn regions_either_side_of_a_narrow_slot_each_plan_their_own_side() {
+        // Two blocks 2 mm apart; the layer closes the slot to 0.3 mm: two slivers 0.85 mm
+        // wide, each within the other's window. Each plan lays strands on its own side only
+        // (each laid the other side's perimeter too: twice over, once in air).
+        let below = mp(vec![
+            rect(0.0, 0.0, 10.0, 20.0),
+            rect(12.0, 0.0, 22.0, 20.0),
+        ]);
+        let area = mp(vec![
+            rect(0.0, 0.0, 10.85, 20.0),
+            rect(11.15, 0.0, 22.0, 20.0),
+        ]);
+        let settings = PoaSettings::default();
+        let slivers = difference(&area, &below);
+        assert_eq!(slivers.0.len(), 2);
+        for poly in &slivers.0 {
+            let left = geo::Centroid::centroid(poly).is_some_and(|c| c.x() < 11.0);
+            let plan = plan_over(poly.clone(), &below, &area, bead_widths(), &settings);
+            assert!(!plan.strands.is_empty());
+            for s in &plan.strands {
+                for p in &s.points {
+                    assert_eq!(p[0] < 11.0, left, "{:?} strand at {p:?}", s.kind);
                 }
             }
         }
