@@ -96,6 +96,42 @@ fn next_cell(row: &[u64], from: usize, nx: usize, set: bool) -> usize {
     }
 }
 
+/// Runs of cells of a raster, row by row: `(row, a, b)` for the cells `[a, b)`, sorted, and
+/// where each row's runs start in that list.
+#[derive(Debug, Default)]
+struct RowRuns {
+    runs: Vec<(usize, usize, usize)>,
+    /// Row `r` holds `runs[first[r]..first[r + 1]]`.
+    first: Vec<usize>,
+}
+
+impl RowRuns {
+    /// Starts the next row; its runs are pushed after.
+    fn new_row(&mut self) {
+        if self.first.is_empty() {
+            self.first.push(0);
+        }
+        self.first.push(self.runs.len());
+    }
+
+    fn push(&mut self, a: usize, b: usize) {
+        let r = self.rows() - 1;
+        self.runs.push((r, a, b));
+        if let Some(end) = self.first.last_mut() {
+            *end = self.runs.len();
+        }
+    }
+
+    fn rows(&self) -> usize {
+        self.first.len().saturating_sub(1)
+    }
+
+    /// The indices of row `r`'s runs.
+    fn row(&self, r: usize) -> std::ops::Range<usize> {
+        self.first[r]..self.first[r + 1]
+    }
+}
+
 /// The cells of an `nx` x `ny` raster (rows of `stride` words, a bit per cell) that are set
 /// or empty but enclosed, i.e. not joined to the raster's edge by empty cells: per row, its
 /// runs `[a, b)`. Found on runs of empty cells, not cells: two runs of adjacent rows meet
@@ -103,11 +139,10 @@ fn next_cell(row: &[u64], from: usize, nx: usize, set: bool) -> usize {
 /// rows and the runs touching the side columns. Time and memory follow the runs (an empty
 /// row is one), not the cells: a raster stretched over metres by a damaged file's far-out
 /// strands is mostly empty rows.
-fn enclosed_runs(bits: &[u64], nx: usize, ny: usize, stride: usize) -> Vec<Vec<(usize, usize)>> {
-    let mut runs: Vec<(u32, u32)> = Vec::new();
-    let mut first = Vec::with_capacity(ny + 1);
+fn enclosed_runs(bits: &[u64], nx: usize, ny: usize, stride: usize) -> RowRuns {
+    let mut empty = RowRuns::default();
     for r in 0..ny {
-        first.push(runs.len());
+        empty.new_row();
         let row = &bits[r * stride..(r + 1) * stride];
         let mut c = 0;
         while c < nx {
@@ -116,60 +151,56 @@ fn enclosed_runs(bits: &[u64], nx: usize, ny: usize, stride: usize) -> Vec<Vec<(
                 break;
             }
             let b = next_cell(row, a, nx, true);
-            runs.push((a as u32, b as u32));
+            empty.push(a, b);
             c = b;
         }
     }
-    first.push(runs.len());
+    let runs = &empty.runs;
     let mut outside = vec![false; runs.len()];
-    let mut stack: Vec<(usize, usize)> = Vec::new();
-    for r in 0..ny {
-        for i in first[r]..first[r + 1] {
-            let (a, b) = runs[i];
-            if r == 0 || r + 1 == ny || a == 0 || b as usize == nx {
-                outside[i] = true;
-                stack.push((r, i));
-            }
+    let mut stack: Vec<usize> = Vec::new();
+    for (i, &(r, a, b)) in runs.iter().enumerate() {
+        if r == 0 || r + 1 == ny || a == 0 || b == nx {
+            outside[i] = true;
+            stack.push(i);
         }
     }
-    while let Some((r, i)) = stack.pop() {
-        let (a, b) = runs[i];
+    while let Some(i) = stack.pop() {
+        let (r, a, b) = runs[i];
         for nr in [r.wrapping_sub(1), r + 1] {
             if nr >= ny {
                 continue;
             }
-            let row = &runs[first[nr]..first[nr + 1]];
+            let row = empty.row(nr);
             // Runs of a row are sorted and disjoint: those sharing a column with [a, b).
-            let mut j = first[nr] + row.partition_point(|&(_, e)| e <= a);
-            while j < first[nr + 1] && runs[j].0 < b {
+            let mut j = row.start + runs[row.clone()].partition_point(|&(_, _, e)| e <= a);
+            while j < row.end && runs[j].1 < b {
                 if !outside[j] {
                     outside[j] = true;
-                    stack.push((nr, j));
+                    stack.push(j);
                 }
                 j += 1;
             }
         }
     }
-    (0..ny)
-        .map(|r| {
-            // What lies between the row's outside runs.
-            let mut kept = Vec::new();
-            let mut c = 0;
-            for i in first[r]..first[r + 1] {
-                if outside[i] {
-                    let (a, b) = (runs[i].0 as usize, runs[i].1 as usize);
-                    if a > c {
-                        kept.push((c, a));
-                    }
-                    c = b;
+    // What lies between each row's outside runs.
+    let mut kept = RowRuns::default();
+    for r in 0..ny {
+        kept.new_row();
+        let mut c = 0;
+        for i in empty.row(r) {
+            if outside[i] {
+                let (_, a, b) = runs[i];
+                if a > c {
+                    kept.push(c, a);
                 }
+                c = b;
             }
-            if c < nx {
-                kept.push((c, nx));
-            }
-            kept
-        })
-        .collect()
+        }
+        if c < nx {
+            kept.push(c, nx);
+        }
+    }
+    kept
 }
 
 /// The outline of a raster's runs (per row, `[a, b)` in cells, sorted; `x(c)` and `y(r)`
@@ -178,18 +209,12 @@ fn enclosed_runs(bits: &[u64], nx: usize, ny: usize, stride: usize) -> Vec<Vec<(
 /// corner will do) are one group, joined by Clipper. Clipper alone took 30 ms for one pile of
 /// 4 000 rows (a rectangle a row), and a damaged file has hundreds of such layers.
 fn runs_outline(
-    kept: &[Vec<(usize, usize)>],
+    kept: &RowRuns,
     x: impl Fn(usize) -> f64,
     y: impl Fn(usize) -> f64,
 ) -> MultiPolygon<f64> {
     use geo_clipper::Clipper;
-    let mut first = Vec::with_capacity(kept.len() + 1);
-    let mut runs: Vec<(usize, usize, usize)> = Vec::new();
-    for (r, row) in kept.iter().enumerate() {
-        first.push(runs.len());
-        runs.extend(row.iter().map(|&(a, b)| (r, a, b)));
-    }
-    first.push(runs.len());
+    let (runs, first) = (&kept.runs, &kept.first);
     fn root(parent: &mut [usize], mut i: usize) -> usize {
         while parent[i] != i {
             parent[i] = parent[parent[i]];
@@ -200,7 +225,7 @@ fn runs_outline(
     let mut parent: Vec<usize> = (0..runs.len()).collect();
     let (mut ups, mut downs) = (vec![0u32; runs.len()], vec![0u32; runs.len()]);
     let mut below = vec![usize::MAX; runs.len()];
-    for r in 1..kept.len() {
+    for r in 1..kept.rows() {
         let (mut i, mut j) = (first[r - 1], first[r]);
         while i < first[r] && j < first[r + 1] {
             let ((_, a, b), (_, c, d)) = (runs[i], runs[j]);
@@ -1297,7 +1322,7 @@ mod tests {
             let runs = enclosed_runs(&bits, nx, ny, stride);
             for r in 0..ny {
                 let mut kept = vec![false; nx];
-                for &(a, b) in &runs[r] {
+                for &(_, a, b) in &runs.runs[runs.row(r)] {
                     assert!(a < b && b <= nx);
                     kept[a..b].iter_mut().for_each(|k| *k = true);
                 }
