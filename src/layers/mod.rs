@@ -65,6 +65,14 @@ pub struct Path {
     pub feed: f64,
 }
 
+/// Reusable buffers of an open path (see [`State::spare`]).
+#[derive(Debug, Default)]
+struct PathBuffers {
+    points: Vec<[f64; 2]>,
+    seg_line: Vec<u64>,
+    seg_e: Vec<f64>,
+}
+
 impl Path {
     pub fn length(&self) -> f64 {
         self.points
@@ -491,6 +499,10 @@ struct State {
     in_config: bool,
     cur: Builder,
     open_path: Option<Path>,
+    /// The open path's buffers, kept between paths: a path grows in them and is copied out
+    /// at its exact size when it closes (growing each path's own vectors from one point
+    /// reallocated them a dozen times: an eighth of the reader's time on a plate).
+    spare: PathBuffers,
     /// (raw offset, line, interpreter state before it) of the first Z change since the last
     /// extrusion.
     z_change: Option<(usize, u64, Option<Box<Machine>>)>,
@@ -704,6 +716,7 @@ impl State {
                 ..Builder::new(LayerKind::Preamble, 1)
             },
             open_path: None,
+            spare: PathBuffers::default(),
             z_change: None,
             held: Vec::new(),
             layer_moves: 0,
@@ -1132,17 +1145,22 @@ impl State {
                 self.close_path();
             }
         }
-        let path = self.open_path.get_or_insert_with(|| Path {
-            role,
-            width,
-            height,
-            z: m.to[2],
-            object: self.object,
-            tool: self.machine.tool,
-            points: vec![start],
-            seg_line: Vec::new(),
-            seg_e: Vec::new(),
-            feed: m.feed,
+        let spare = &mut self.spare;
+        let path = self.open_path.get_or_insert_with(|| {
+            let mut points = std::mem::take(&mut spare.points);
+            points.push(start);
+            Path {
+                role,
+                width,
+                height,
+                z: m.to[2],
+                object: self.object,
+                tool: self.machine.tool,
+                points,
+                seg_line: std::mem::take(&mut spare.seg_line),
+                seg_e: std::mem::take(&mut spare.seg_e),
+                feed: m.feed,
+            }
         });
         if m.arc.is_none() {
             path.points.push([m.to[0], m.to[1]]);
@@ -1176,8 +1194,22 @@ impl State {
     }
 
     fn close_path(&mut self) {
-        if let Some(p) = self.open_path.take() {
-            self.cur.paths.push(p);
+        if let Some(mut p) = self.open_path.take() {
+            let exact = Path {
+                points: p.points.as_slice().to_vec(),
+                seg_line: p.seg_line.as_slice().to_vec(),
+                seg_e: p.seg_e.as_slice().to_vec(),
+                ..p
+            };
+            p.points.clear();
+            p.seg_line.clear();
+            p.seg_e.clear();
+            self.spare = PathBuffers {
+                points: p.points,
+                seg_line: p.seg_line,
+                seg_e: p.seg_e,
+            };
+            self.cur.paths.push(exact);
         }
     }
 
