@@ -153,6 +153,13 @@ const NEAR_LOOP_AT: f64 = 0.15;
 /// perimeter's centre.
 const RING_NEEDED: f64 = 0.5;
 const UNDER_AT: f64 = 0.05;
+/// Shortest stretch (mm) of a half-width ring lying [`HALF_LOOP_AT`] inside the perimeter
+/// that gets the full loop there instead: longer than the in-and-out of a faceted wall's
+/// ring round the mark, shorter than a face of its own slope.
+const MIXED_RUN: f64 = 5.0;
+/// Width (in loop widths) of the band round those full stretches where the half loop is
+/// left out: the half bead's end (a quarter width) meets the full one's (a half).
+const MIXED_MASK: f64 = 1.5;
 /// How much nearer the loop before (in widths) a half-width loop of a thin ring lies than a
 /// full one: at a full step its narrower bead would only just touch the loop before.
 const HALF_BACK: f64 = 0.05;
@@ -471,6 +478,8 @@ pub(super) fn plan_in(
                 } else {
                     clip_lines(&half_ring, &near_half, true)
                 };
+                let (full, half) = full_stretches(&pieces, half, &full_room, w);
+                strands.extend(shape(w).strands(full, 2.0 * w, &mut at));
                 strands.extend(shape(w / 2.0).strands(half, 2.0 * w, &mut at));
             }
             held += strands[before..]
@@ -710,12 +719,20 @@ pub(super) fn plan_in(
         Vec::new()
     } else {
         let ring = rings(&offset(below_loc, step - w / 2.0 - HALF_BACK * w));
-        let shape = Shape {
+        let shape = |width: f64| Shape {
             kind: StrandKind::Loop,
             loop_index: 1,
-            width: w / 2.0,
+            width,
         };
-        shape.strands(clip_lines(&ring, &strip, true), 2.0 * w, &mut at)
+        // Where the perimeter hangs farther (a flatter face), the full loop (see
+        // [`full_stretches`]).
+        let full_ring = clip_lines(&rings(&offset(below_loc, step - w / 2.0)), &strip, true);
+        let full_room = offset(&perimeter_area, -HALF_LOOP_AT * w);
+        let (full, half) =
+            full_stretches(&full_ring, clip_lines(&ring, &strip, true), &full_room, w);
+        let mut v = shape(w).strands(full, 2.0 * w, &mut at);
+        v.extend(shape(w / 2.0).strands(half, 2.0 * w, &mut at));
+        v
     };
     let held_by_wall = Shape {
         kind: StrandKind::Loop,
@@ -1668,6 +1685,33 @@ impl Shape {
             })
             .collect()
     }
+}
+
+/// Where a half-width loop under a perimeter gives way to the full one: a ring across walls
+/// of different slopes (a ramp's steps side by side, an egg's ends and sides) lies near the
+/// perimeter on the steep ones and well inside it on the flatter ones, where a half-width
+/// loop leaves the perimeter hanging past its edge (a 55 degree step beside a 45 degree one
+/// by Cura: 9.3 mm in air on one layer). `ring`: the full loop's ring; its stretches inside
+/// `full_room` (the perimeter's area drawn in by [`HALF_LOOP_AT`] widths) longer than
+/// [`MIXED_RUN`] are returned as full loops, and `half` without what lies beside them.
+fn full_stretches(
+    ring: &[Polyline],
+    half: Vec<Polyline>,
+    full_room: &MultiPolygon<f64>,
+    w: f64,
+) -> (Vec<Polyline>, Vec<Polyline>) {
+    let full: Vec<Polyline> = clip_lines(ring, full_room, true)
+        .into_iter()
+        .filter(|p| polyline_length(p) >= MIXED_RUN)
+        .collect();
+    if full.is_empty() {
+        return (full, half);
+    }
+    let mask =
+        crate::geometry::area::Strands::of_lines(full.iter().map(|p| (&p[..], MIXED_MASK * w)))
+            .buffer();
+    let half = clip_lines(&half, &mask, false);
+    (full, half)
 }
 
 /// `rect` grown by `margin` on every side, as a polygon.

@@ -426,3 +426,37 @@ fn combined_infill_inside_a_single_square_wall_is_held() {
         .sum();
     assert!(column < 1.0, "the column: {column:.1} mm in air");
 }
+
+/// Gradual slopes of 30 to 75 degrees side by side, by Cura with a wide first layer: on the
+/// layer above the first sloped one, one strip of the zone (no loop reaches it) runs across
+/// a 45 and a 55 degree step, and a half-width loop laid all along it under the perimeter
+/// left the perimeter over the 55 degree step hanging past its edge (9.3 mm in air on that
+/// layer). Where the strip lies well inside the perimeter for a face's length, the loop
+/// there is of full width.
+#[test]
+fn a_strip_across_steps_of_different_slopes_holds_the_perimeter_over_each() {
+    let settings = ["initial_layer_line_width_factor=180", "layer_height=0.2"];
+    let Some(data) = slice_cura(&part("slope_steps"), "creality_ender3", &settings) else {
+        return;
+    };
+    let (out, rep) = rewrite(&data, BridgeMode::Auto);
+    assert!(
+        rep.regions_rewritten > 10,
+        "{} rewritten",
+        rep.regions_rewritten
+    );
+    let (before, after) = (check(&data), check(&out));
+    assert!(
+        before.in_air_mm > 100.0,
+        "{} mm in air as sliced",
+        before.in_air_mm
+    );
+    for l in &after.layers {
+        assert!(
+            l.in_air_mm <= 1.0,
+            "layer at Z {:.2}: {:.1} mm in air after the rewrite",
+            l.z,
+            l.in_air_mm
+        );
+    }
+}
