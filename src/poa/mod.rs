@@ -434,11 +434,18 @@ pub(super) fn plan_in(
         let mut loops = 0;
         let mut held = 0;
         let mut growth = crate::geometry::Growth::new(below_loc);
-        for k in 1..=(extent.min(2000.0) / step).ceil() as usize + 2 {
+        // Where the next full-width ring's centre lies past the wall below. A ring goes a
+        // step past a full one (a tenth of a width past its edge), but nearer a half-width
+        // one, whose edge is a quarter width nearer: a step less a quarter width past it
+        // (at a full step, a bow's tip got two half-width rings 0.27 mm apart, the second's
+        // centre 0.16 mm past the first's edge: in air).
+        let mut next_at = step - w / 2.0;
+        let rings_most = (extent.min(2000.0) / (step - w / 4.0).max(0.05 * w)).ceil() as usize + 2;
+        for k in 1..=rings_most {
             let ring = if k == 1 {
                 rings(&front)
             } else {
-                rings(&growth.at(k as f64 * step - w / 2.0))
+                rings(&growth.at(next_at))
             };
             let mut pieces = clip_lines(&ring, &near_room, true);
             if pieces.is_empty() {
@@ -472,7 +479,7 @@ pub(super) fn plan_in(
             if inside_full >= 0.5 * length(&pieces) {
                 strands.extend(shape(w).strands(pieces, 2.0 * w, &mut at));
             } else {
-                let half_ring = rings(&growth.at(k as f64 * step - w / 2.0 - HALF_BACK * w));
+                let half_ring = rings(&growth.at(next_at - HALF_BACK * w));
                 let half = if needed {
                     clip_lines(&half_ring, &under, true)
                 } else {
@@ -480,8 +487,13 @@ pub(super) fn plan_in(
                 };
                 let (full, half) = full_stretches(&pieces, half, &full_room, w);
                 strands.extend(shape(w).strands(full, 2.0 * w, &mut at));
+                let halves = strands.len();
                 strands.extend(shape(w / 2.0).strands(half, 2.0 * w, &mut at));
+                if strands.len() > halves {
+                    next_at -= HALF_BACK * w + w / 4.0;
+                }
             }
+            next_at += step;
             held += strands[before..]
                 .iter()
                 .map(|s| s.points.len())

@@ -460,3 +460,31 @@ fn a_strip_across_steps_of_different_slopes_holds_the_perimeter_over_each() {
         );
     }
 }
+
+/// A boat hull by Cura with a wide first layer: at the bow's tip, the thin plan's ring 1 and
+/// ring 2 were both half width, a full step (0.27 mm) apart, so the second's centre lay
+/// 0.16 mm past the first's edge: 1.5 mm in air on each of two layers the slicer printed
+/// without any. A ring after a half-width one goes a quarter width nearer.
+#[test]
+fn rings_after_a_half_width_ring_rest_on_it() {
+    let settings = ["initial_layer_line_width_factor=180", "layer_height=0.2"];
+    let Some(data) = slice_cura(&part("hull"), "creality_ender3", &settings) else {
+        return;
+    };
+    let (out, rep) = rewrite(&data, BridgeMode::Auto);
+    assert!(
+        rep.regions_rewritten > 5,
+        "{} rewritten",
+        rep.regions_rewritten
+    );
+    let (before, after) = (check(&data), check(&out));
+    for (b, a) in before.layers.iter().zip(&after.layers) {
+        assert!(
+            a.in_air_mm <= b.in_air_mm + 0.3,
+            "layer at Z {:.2}: {:.1} mm in air after the rewrite, {:.1} as sliced",
+            a.z,
+            a.in_air_mm,
+            b.in_air_mm
+        );
+    }
+}
