@@ -853,6 +853,10 @@ fn dangling_tails(
     };
     let boxes: Vec<([f64; 2], [f64; 2])> = near.iter().map(|(l, h, _)| (*l, *h)).collect();
     let mut sup = crate::check::EndSupport::new(below, &boxes, filament_area);
+    let zone_boxes: Vec<Option<geo::Rect<f64>>> = zones
+        .iter()
+        .map(|z| geo::BoundingRect::bounding_rect(*z))
+        .collect();
     let mut tails: Vec<Tail> = Vec::new();
     let entry = |tails: &mut Vec<Tail>, line: u64, region: usize| -> usize {
         match tails.iter().position(|t| t.line == line) {
@@ -902,9 +906,21 @@ fn dangling_tails(
                 };
                 let ahead = [end[0] - inner[0], end[1] - inner[1]];
                 // An end in or at a zone is taken out or rests on the loops printed first.
-                if zones.iter().any(|z| {
+                // (Zones whose box is farther are not measured: a plate's cap layer asked
+                // every zone's every edge for every infill end.)
+                let near_box = |b: &Option<geo::Rect<f64>>| {
+                    b.is_none_or(|b| {
+                        let r = path.width;
+                        end[0] >= b.min().x - r
+                            && end[0] <= b.max().x + r
+                            && end[1] >= b.min().y - r
+                            && end[1] <= b.max().y + r
+                    })
+                };
+                if zones.iter().zip(&zone_boxes).any(|(z, b)| {
                     use geo::{Distance, Euclidean};
-                    Euclidean.distance(*z, &geo::Point::new(end[0], end[1])) <= path.width
+                    near_box(b)
+                        && Euclidean.distance(*z, &geo::Point::new(end[0], end[1])) <= path.width
                 }) {
                     continue;
                 }
