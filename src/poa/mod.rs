@@ -440,7 +440,10 @@ pub(super) fn plan_in(
         // (at a full step, a bow's tip got two half-width rings 0.27 mm apart, the second's
         // centre 0.16 mm past the first's edge: in air).
         let mut next_at = step - w / 2.0;
-        let rings_most = (extent.min(2000.0) / (step - w / 4.0).max(0.05 * w)).ceil() as usize + 2;
+        // After a half-width ring the next goes at least half a step on (at an overlap of
+        // 0.75 or more a step is a quarter width or less, and a full one holds anyway).
+        let after_half = (step - w / 4.0 - HALF_BACK * w).max(step / 2.0);
+        let rings_most = (extent.min(2000.0) / after_half).ceil() as usize + 2;
         for k in 1..=rings_most {
             let ring = if k == 1 {
                 rings(&front)
@@ -476,8 +479,9 @@ pub(super) fn plan_in(
             // the mark in and out of it every few millimetres, and pieces that short were
             // dropped, leaving no loop at all.
             let inside_full = length(&clip_lines(&pieces, &full_room, true));
-            if inside_full >= 0.5 * length(&pieces) {
+            let advance = if inside_full >= 0.5 * length(&pieces) {
                 strands.extend(shape(w).strands(pieces, 2.0 * w, &mut at));
+                step
             } else {
                 let half_ring = rings(&growth.at(next_at - HALF_BACK * w));
                 let half = if needed {
@@ -490,10 +494,12 @@ pub(super) fn plan_in(
                 let halves = strands.len();
                 strands.extend(shape(w / 2.0).strands(half, 2.0 * w, &mut at));
                 if strands.len() > halves {
-                    next_at -= HALF_BACK * w + w / 4.0;
+                    after_half
+                } else {
+                    step
                 }
-            }
-            next_at += step;
+            };
+            next_at += advance;
             held += strands[before..]
                 .iter()
                 .map(|s| s.points.len())
