@@ -427,6 +427,21 @@ fn combined_infill_inside_a_single_square_wall_is_held() {
     assert!(column < 1.0, "the column: {column:.1} mm in air");
 }
 
+/// `part` sliced by Cura for an Ender 3 with its first layer 180 % wide at 0.2 mm layers,
+/// rewritten (more than `regions` regions): the deposition check as sliced and as
+/// rewritten. `None` without CuraEngine.
+fn wide_first_layer_rewrite(part_name: &str, regions: usize) -> Option<(CheckReport, CheckReport)> {
+    let settings = ["initial_layer_line_width_factor=180", "layer_height=0.2"];
+    let data = slice_cura(&part(part_name), "creality_ender3", &settings)?;
+    let (out, rep) = rewrite(&data, BridgeMode::Auto);
+    assert!(
+        rep.regions_rewritten > regions,
+        "{part_name}: {} rewritten",
+        rep.regions_rewritten
+    );
+    Some((check(&data), check(&out)))
+}
+
 /// Gradual slopes of 30 to 75 degrees side by side, by Cura with a wide first layer: on the
 /// layer above the first sloped one, one strip of the zone (no loop reaches it) runs across
 /// a 45 and a 55 degree step, and a half-width loop laid all along it under the perimeter
@@ -435,17 +450,9 @@ fn combined_infill_inside_a_single_square_wall_is_held() {
 /// there is of full width.
 #[test]
 fn a_strip_across_steps_of_different_slopes_holds_the_perimeter_over_each() {
-    let settings = ["initial_layer_line_width_factor=180", "layer_height=0.2"];
-    let Some(data) = slice_cura(&part("slope_steps"), "creality_ender3", &settings) else {
+    let Some((before, after)) = wide_first_layer_rewrite("slope_steps", 10) else {
         return;
     };
-    let (out, rep) = rewrite(&data, BridgeMode::Auto);
-    assert!(
-        rep.regions_rewritten > 10,
-        "{} rewritten",
-        rep.regions_rewritten
-    );
-    let (before, after) = (check(&data), check(&out));
     assert!(
         before.in_air_mm > 100.0,
         "{} mm in air as sliced",
@@ -467,17 +474,9 @@ fn a_strip_across_steps_of_different_slopes_holds_the_perimeter_over_each() {
 /// without any. A ring after a half-width one goes a quarter width nearer.
 #[test]
 fn rings_after_a_half_width_ring_rest_on_it() {
-    let settings = ["initial_layer_line_width_factor=180", "layer_height=0.2"];
-    let Some(data) = slice_cura(&part("hull"), "creality_ender3", &settings) else {
+    let Some((before, after)) = wide_first_layer_rewrite("hull", 5) else {
         return;
     };
-    let (out, rep) = rewrite(&data, BridgeMode::Auto);
-    assert!(
-        rep.regions_rewritten > 5,
-        "{} rewritten",
-        rep.regions_rewritten
-    );
-    let (before, after) = (check(&data), check(&out));
     for (b, a) in before.layers.iter().zip(&after.layers) {
         assert!(
             a.in_air_mm <= b.in_air_mm + 0.3,
