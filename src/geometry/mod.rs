@@ -43,17 +43,10 @@ pub fn offset(mp: &MultiPolygon<f64>, delta: f64) -> MultiPolygon<f64> {
     if mp.0.is_empty() {
         return MultiPolygon::new(Vec::new());
     }
-    if delta > 0.0 {
-        if let Some(kept) = without_closing_holes(mp, delta) {
-            return kept.offset(
-                delta,
-                JoinType::Round(ARC_TOLERANCE * CLIPPER_SCALE),
-                EndType::ClosedPolygon,
-                CLIPPER_SCALE,
-            );
-        }
-    }
-    mp.offset(
+    let pruned = (delta > 0.0)
+        .then(|| without_closing_holes(mp, delta))
+        .flatten();
+    pruned.as_ref().unwrap_or(mp).offset(
         delta,
         JoinType::Round(ARC_TOLERANCE * CLIPPER_SCALE),
         EndType::ClosedPolygon,
