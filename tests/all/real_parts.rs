@@ -1006,19 +1006,6 @@ fn a_plate_ringed_by_thick_bridge_perimeters_is_planned_to_its_edge() {
     held_up(&what, &before, &after, 10.0);
 }
 
-/// No layer has more than 0.3 mm more in air than the slicer left.
-fn no_layer_worse(what: &str, before: &CheckReport, after: &CheckReport) {
-    for (b, a) in before.layers.iter().zip(&after.layers) {
-        assert!(
-            a.in_air_mm <= b.in_air_mm + 0.3,
-            "{what}: layer {} {:.1} mm in air, {:.1} before",
-            b.layer,
-            a.in_air_mm,
-            b.in_air_mm
-        );
-    }
-}
-
 /// The deposition check of a slice and of its rewrite, their in-air totals printed for the
 /// record.
 fn before_after(what: &str, d: &[u8], new: &[u8]) -> (CheckReport, CheckReport) {

@@ -475,3 +475,20 @@ pub fn peak_kib(
         }
     }
 }
+
+/// No layer has more than 0.3 mm more in air than the slicer left.
+pub fn no_layer_worse(
+    what: &str,
+    before: &printonair::report::CheckReport,
+    after: &printonair::report::CheckReport,
+) {
+    for (b, a) in before.layers.iter().zip(&after.layers) {
+        assert!(
+            a.in_air_mm <= b.in_air_mm + 0.3,
+            "{what}: layer {} {:.1} mm in air, {:.1} before",
+            b.layer,
+            a.in_air_mm,
+            b.in_air_mm
+        );
+    }
+}
