@@ -745,7 +745,7 @@ impl State {
 
     fn handle_line(&mut self, raw: &[u8], number: u64) {
         if self.keep_raw {
-            self.before_line = self.machine.snapshot();
+            self.before_line.copy_state_from(&self.machine);
         }
         let content = strip_terminator(raw);
         let parsed = parse_line(content);
