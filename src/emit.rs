@@ -1892,6 +1892,12 @@ pub struct PoaPass<'a> {
     /// The last rewritten layer's index and its area as rewritten, which the layer above it
     /// is planned on.
     rewritten_below: Option<(usize, MultiPolygon<f64>)>,
+    /// The area the layer being planned rests on, as rewritten, when it rests on the layer
+    /// of [`PoaPass::rewritten_below`] and on others (support layers at their own heights
+    /// in between): that layer as rewritten joined with the others as detected.
+    joined_below: Option<(usize, MultiPolygon<f64>)>,
+    /// The areas of the last few layers handed on, as detected (`None` where not made).
+    recent_areas: std::collections::VecDeque<(usize, Option<MultiPolygon<f64>>)>,
     /// The last layer rewritten with wide regions only: what its area as rewritten is made
     /// of, made only if the layer above has regions of its own to plan on it.
     wide_below: Option<WideBelow>,
@@ -1926,6 +1932,8 @@ impl<'a> PoaPass<'a> {
             limits: crate::estimate::Estimator::new(crate::estimate::Limits::from_config(config)),
             next_id: 0,
             rewritten_below: None,
+            joined_below: None,
+            recent_areas: std::collections::VecDeque::new(),
             wide_below: None,
             below_layers: std::collections::VecDeque::new(),
             reread: None,
@@ -2123,6 +2131,31 @@ impl<'a> PoaPass<'a> {
     /// Hands the pass the layer just passed (its raw bytes may be gone): the next layer's
     /// rewrite judges the slicer's strand ends against it. A driver that does not call this
     /// gets no end trimming.
+    /// The area `layer` rests on as rewritten, when it rests on the layer of
+    /// [`PoaPass::rewritten_below`] and on others, and is not the layer just after it
+    /// printed on it alone (read as before): that layer as rewritten joined with the others'
+    /// areas as detected; `None` when one of those was not made.
+    fn join_below(&self, layer: &Layer) -> Option<MultiPolygon<f64>> {
+        let (i, rewritten) = self.rewritten_below.as_ref()?;
+        if !layer.rests_on.contains(i) || (i + 1 == layer.index && layer.over_previous()) {
+            return None;
+        }
+        let mut joined = rewritten.clone();
+        for j in layer.rests_on.iter().filter(|j| *j != i) {
+            let (_, a) = self.recent_areas.iter().find(|(k, _)| k == j)?;
+            joined = crate::geometry::union(&joined, a.as_ref()?);
+        }
+        Some(joined)
+    }
+
+    /// Keeps a layer's area as detected for [`PoaPass::join_below`].
+    pub fn note_area(&mut self, index: usize, area: Option<MultiPolygon<f64>>) {
+        if self.recent_areas.len() > ABOVE_AHEAD {
+            self.recent_areas.pop_front();
+        }
+        self.recent_areas.push_back((index, area));
+    }
+
     pub fn keep_below(&mut self, layer: Layer) {
         if layer.kind == crate::layers::LayerKind::Layer {
             self.layers_e += layer.paths.iter().map(|p| p.e()).sum::<f64>();
@@ -2162,7 +2195,7 @@ impl<'a> PoaPass<'a> {
     ) -> Vec<RegionRewrite> {
         let layer = &d.layer;
         self.plain_written = None;
-        let above = above.filter(|a| a.index == layer.index + 1 && a.on_previous());
+        let above = above.filter(|a| a.rests_on.contains(&layer.index));
         // Where the layer above stands past each region's outline: made once for the three
         // plans below.
         let overhung: Option<Vec<MultiPolygon<f64>>> = above.map(|a| {
@@ -2401,6 +2434,17 @@ impl<'a> PoaPass<'a> {
             // grew from the perimeter as sliced below, 19.4 mm in air each).
             (Some((i, area)), _) if i + 1 == layer.index && layer.over_previous() => area,
             (_, Some(area)) => area,
+            // Resting on that layer and on others (support layers at their own heights):
+            // all of them, that one as rewritten.
+            _ if self
+                .joined_below
+                .as_ref()
+                .is_some_and(|(k, _)| *k == layer.index) =>
+            {
+                self.joined_below
+                    .as_ref()
+                    .map_or(&crate::geometry::NO_AREA, |(_, a)| a)
+            }
             // A layer with regions of its own always has the area below.
             _ => d.below.as_ref().unwrap_or(&crate::geometry::NO_AREA),
         };
@@ -2716,10 +2760,16 @@ impl PoaPass<'_> {
         // it is needed (a rewrite below or here).
         let own_area = std::cell::OnceCell::new();
         let area = || own_area.get_or_init(|| d.area_or_compute(&self.opts.detect));
-        let (regions, above_rewrite) = match &self.rewritten_below {
-            Some((i, below))
-                if i + 1 == d.layer.index && !d.layer.on_bed() && d.layer.over_previous() =>
-            {
+        self.joined_below = self.join_below(&d.layer).map(|a| (d.layer.index, a));
+        let below_rewritten = match (&self.rewritten_below, &self.joined_below) {
+            (Some((i, below)), _) if i + 1 == d.layer.index && d.layer.over_previous() => {
+                Some(below)
+            }
+            (_, Some((k, below))) if *k == d.layer.index => Some(below),
+            _ => None,
+        };
+        let (regions, above_rewrite) = match below_rewritten {
+            Some(below) if !d.layer.on_bed() => {
                 // The moved perimeters come in pieces: so do the regions they leave.
                 let opts = crate::geometry::DetectOptions {
                     min_area: self.opts.detect.min_area.min(0.1),
@@ -2797,8 +2847,13 @@ impl PoaPass<'_> {
         self.wide_below = None;
         let zones =
             crate::geometry::union_all(&rewrites.iter().map(|r| &r.plan.zone).collect::<Vec<_>>());
+        // Kept over layers that move no outline, for a layer printed later that rests on
+        // it across them ([`PoaPass::join_below`]); the layer just after it reads it only
+        // when it is the one just before.
         self.rewritten_below = if !moves_outline {
-            None
+            self.rewritten_below
+                .take()
+                .filter(|(i, _)| i + ABOVE_AHEAD >= layer.index)
         } else {
             let strands = rewrites
                 .iter()
@@ -2828,7 +2883,7 @@ impl PoaPass<'_> {
                             let (bytes, stats) = rewrite_layer(
                                 layer,
                                 &below,
-                                above.filter(|a| a.index == layer.index + 1 && a.on_previous()),
+                                above.filter(|a| a.rests_on.contains(&layer.index)),
                                 &rewrites,
                                 &self.motion,
                                 &self.opts.settings,
@@ -3432,6 +3487,18 @@ fn reread(layer: &Layer, bytes: &[u8], config: &SlicerConfig) -> Option<Layer> {
 const EMIT_AHEAD: usize = 16;
 const EMIT_AHEAD_BYTES: usize = 4 << 20;
 
+/// Layers the rewrite holds while it looks for the layer printed on the first of them, at
+/// most: this many, and no more than [`ABOVE_AHEAD_BYTES`] (the first is then handed on with
+/// no layer above known).
+const ABOVE_AHEAD: usize = 8;
+const ABOVE_AHEAD_BYTES: usize = 16 << 20;
+
+/// Whether a layer prints any of the part (not support material, a skirt or a wipe tower
+/// alone).
+fn prints_part(layer: &Layer) -> bool {
+    layer.paths.iter().any(|p| p.role.is_part())
+}
+
 /// Rewrites a whole file, streaming: reads `input`, writes `output`.
 ///
 /// Long by design: the streaming driver (read, detect, pass, header, footer) whose hand-over of held blocks must stay in one place to be correct.
@@ -3481,6 +3548,7 @@ pub fn process<R: BufRead + Send, W: Write + Send>(
                 above.map_or(&[][..], |a| &a.regions[..]),
             )
             .map_err(io::Error::other)?;
+        pass.note_area(d.layer.index, d.area);
         let report = &mut pass.report;
         let mut layer = d.layer;
         // A layer passed through is moved to the output, not copied.
@@ -3517,21 +3585,44 @@ pub fn process<R: BufRead + Send, W: Write + Send>(
         pass.keep_below(layer);
         Ok(())
     };
-    // Hands each block on once the next one is there (`None`: the end).
+    // Hands each block on once the layer printed on it is there (`None`: the end): the first
+    // later layer that rests on it, which is the next one but for layers printed between
+    // (support layers interleaved at their own heights, another object's layers on a plate
+    // of several layer heights). A hull's tip by PrusaSlicer with support: its perimeter was
+    // moved in with nothing known above (the next layer was support alone), and the part's
+    // next layer, resting on it across the support layer, hung 0.9 -> 25 mm more in air.
     let mut push = {
-        let mut pending: Option<crate::geometry::Detected> = None;
+        let mut pending: std::collections::VecDeque<crate::geometry::Detected> =
+            std::collections::VecDeque::new();
+        let mut held = 0usize;
         move |d: Option<crate::geometry::Detected>| -> io::Result<()> {
-            match d {
-                Some(d) => {
-                    let ready = pending.take();
-                    let next = pending.insert(d);
-                    match ready {
-                        Some(p) => handle(p, Some(next)),
-                        None => Ok(()),
-                    }
-                }
-                None => pending.take().map_or(Ok(()), |p| handle(p, None)),
+            let end = d.is_none();
+            if let Some(d) = d {
+                held += crate::geometry::detect::weight(&d.layer);
+                pending.push_back(d);
             }
+            while let Some(front) = pending.front() {
+                let index = front.layer.index;
+                let on_it = |part: bool| {
+                    pending.iter().skip(1).position(|a| {
+                        a.layer.rests_on.contains(&index) && (!part || prints_part(&a.layer))
+                    })
+                };
+                // The wait is bounded: a layer nothing rests on (an object's top on a plate
+                // that goes on) is handed on with none above after a few layers. Support
+                // material alone resting on it (support layers at their own heights) stands
+                // in only when no layer of the part comes.
+                let full = pending.len() > ABOVE_AHEAD || held > ABOVE_AHEAD_BYTES;
+                let above = match on_it(true) {
+                    Some(k) => Some(k),
+                    None if end || full => on_it(false),
+                    None => break,
+                };
+                let Some(p) = pending.pop_front() else { break };
+                held = held.saturating_sub(crate::geometry::detect::weight(&p.layer));
+                handle(p, above.and_then(|k| pending.get(k)))?;
+            }
+            Ok(())
         }
     };
     let checked = |d: &crate::geometry::Detected| {

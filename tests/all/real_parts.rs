@@ -977,6 +977,23 @@ fn a_cap_on_cura_s_support_is_judged_with_the_support_under_it() {
     no_layer_worse("c_cap on Cura's support", &check(&d), &check(&new));
 }
 
+/// A hull on PrusaSlicer's support, whose layers come at heights of their own between the
+/// part's: the layer printed after one of the hull's is support alone, and the hull's next
+/// layer rests on both. Its bow's perimeter, moved onto the layer below with nothing known
+/// above it, left that next layer's bow 25 mm more in air than as sliced; the next layer is
+/// now planned on the layer as rewritten, as over any rewritten layer.
+#[test]
+fn a_hull_on_support_layers_of_their_own_keeps_its_next_layer_held() {
+    let Some(d) = slice_defaults("hull", &["--support-material", "--support-material-auto"]) else {
+        return;
+    };
+    let (new, _) = rewrite(&d, BridgeMode::Auto);
+    let what = "hull on support by PrusaSlicer";
+    let (before, after) = before_after(what, &d, &new);
+    no_layer_worse(what, &before, &after);
+    cut_to(what, &before, &after, 0.2);
+}
+
 /// PrusaSlicer with thick bridges, four perimeters, cubic infill, concentric top and the seam
 /// at the rear (a held-out settings set).
 const THICK_BRIDGES: &[&str] = &[

@@ -162,15 +162,27 @@ pub fn slice(specimen: &str, args: &[&str]) -> Option<Vec<u8>> {
 
 /// Slices an STL with PrusaSlicer's CLI and the samples' config plus `args`.
 pub fn slice_stl(stl: &Path, args: &[&str]) -> Option<Vec<u8>> {
+    let config = repo().join("sample-gcode/config/prusaslicer-mk3s-pla.ini");
+    slice_stl_from(stl, Some(&config), args)
+}
+
+/// Slices a test part with PrusaSlicer's own defaults (0.3 mm layers, widths from the
+/// nozzle) plus `args`: a printer profile nobody tuned poa to.
+pub fn slice_defaults(specimen: &str, args: &[&str]) -> Option<Vec<u8>> {
+    slice_stl_from(&part(specimen), None, args)
+}
+
+fn slice_stl_from(stl: &Path, config: Option<&Path>, args: &[&str]) -> Option<Vec<u8>> {
     if !have_prusaslicer() {
         return None;
     }
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("out.gcode");
-    let config = repo().join("sample-gcode/config/prusaslicer-mk3s-pla.ini");
-    let o = std::process::Command::new("prusa-slicer")
-        .arg("--load")
-        .arg(&config)
+    let mut cmd = std::process::Command::new("prusa-slicer");
+    if let Some(config) = config {
+        cmd.arg("--load").arg(config);
+    }
+    let o = cmd
         .args(args)
         .arg("--export-gcode")
         .arg("-o")
