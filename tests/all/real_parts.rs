@@ -994,6 +994,40 @@ fn a_hull_on_support_layers_of_their_own_keeps_its_next_layer_held() {
     cut_to(what, &before, &after, 0.2);
 }
 
+/// A chamfered box at 0.1 mm layers beside arms at 0.25 mm on one plate (per-object layer
+/// heights, PrusaSlicer's defaults otherwise): between two of the box's layers the file
+/// prints some of the arms'. Each gradual rewrite of the box moved its perimeter with no
+/// layer above known (the next one was the arms'), and the box's next layer kept 0.3 mm in
+/// air at every step of the chamfer (9.9 mm in all); it is now planned on the layer as
+/// rewritten.
+#[test]
+fn a_chamfer_beside_a_part_of_another_layer_height_keeps_its_next_layer_held() {
+    if !have_prusaslicer() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let amf = dir.path().join("plate.amf");
+    write_amf(
+        &[
+            (&part("chamfer_box"), [60.0, 100.0], Some(0.1)),
+            (&part("arms60"), [140.0, 100.0], Some(0.25)),
+        ],
+        &amf,
+    );
+    let Some(d) = slice_stl_defaults(&amf, &["--first-layer-height", "0.2"]) else {
+        return;
+    };
+    let (new, _) = rewrite(&d, BridgeMode::Auto);
+    let what = "chamfer box and arms at two layer heights";
+    let (before, after) = before_after(what, &d, &new);
+    no_layer_worse(what, &before, &after);
+    assert!(
+        after.in_air_mm < 2.0,
+        "{what}: {:.1} mm in air after the rewrite",
+        after.in_air_mm
+    );
+}
+
 /// PrusaSlicer with thick bridges, four perimeters, cubic infill, concentric top and the seam
 /// at the rear (a held-out settings set).
 const THICK_BRIDGES: &[&str] = &[

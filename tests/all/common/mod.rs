@@ -169,7 +169,12 @@ pub fn slice_stl(stl: &Path, args: &[&str]) -> Option<Vec<u8>> {
 /// Slices a test part with PrusaSlicer's own defaults (0.3 mm layers, widths from the
 /// nozzle) plus `args`: a printer profile nobody tuned poa to.
 pub fn slice_defaults(specimen: &str, args: &[&str]) -> Option<Vec<u8>> {
-    slice_stl_from(&part(specimen), None, args)
+    slice_stl_defaults(&part(specimen), args)
+}
+
+/// [`slice_defaults`] for any model file (an AMF plate, say).
+pub fn slice_stl_defaults(model: &Path, args: &[&str]) -> Option<Vec<u8>> {
+    slice_stl_from(model, None, args)
 }
 
 fn slice_stl_from(stl: &Path, config: Option<&Path>, args: &[&str]) -> Option<Vec<u8>> {
