@@ -2128,9 +2128,6 @@ impl<'a> PoaPass<'a> {
         o.and_then(|o| self.report.objects.get(o as usize).cloned())
     }
 
-    /// Hands the pass the layer just passed (its raw bytes may be gone): the next layer's
-    /// rewrite judges the slicer's strand ends against it. A driver that does not call this
-    /// gets no end trimming.
     /// The area `layer` rests on as rewritten, when it rests on the layer of
     /// [`PoaPass::rewritten_below`] and on others, and is not the layer just after it
     /// printed on it alone (read as before): that layer as rewritten joined with the others'
@@ -2156,6 +2153,9 @@ impl<'a> PoaPass<'a> {
         self.recent_areas.push_back((index, area));
     }
 
+    /// Hands the pass the layer just passed (its raw bytes may be gone): the next layer's
+    /// rewrite judges the slicer's strand ends against it. A driver that does not call this
+    /// gets no end trimming.
     pub fn keep_below(&mut self, layer: Layer) {
         if layer.kind == crate::layers::LayerKind::Layer {
             self.layers_e += layer.paths.iter().map(|p| p.e()).sum::<f64>();
