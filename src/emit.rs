@@ -2131,7 +2131,7 @@ impl<'a> PoaPass<'a> {
     /// The area `layer` rests on as rewritten, when it rests on the layer of
     /// [`PoaPass::rewritten_below`] and on others, and is not the layer just after it
     /// printed on it alone (read as before): that layer as rewritten joined with the others'
-    /// areas as detected; `None` when one of those was not made.
+    /// areas as detected; `None` when one of those is no longer kept.
     fn join_below(&self, layer: &Layer) -> Option<MultiPolygon<f64>> {
         let (i, rewritten) = self.rewritten_below.as_ref()?;
         if !layer.rests_on.contains(i) || (i + 1 == layer.index && layer.over_previous()) {
@@ -2139,8 +2139,21 @@ impl<'a> PoaPass<'a> {
         }
         let mut joined = rewritten.clone();
         for j in layer.rests_on.iter().filter(|j| *j != i) {
-            let (_, a) = self.recent_areas.iter().find(|(k, _)| k == j)?;
-            joined = crate::geometry::union(&joined, a.as_ref()?);
+            let made;
+            let area = match self.recent_areas.iter().find(|(k, _)| k == j) {
+                Some((_, Some(a))) => a,
+                // Not made by detection (a layer proven supported, the first layer): made
+                // from the layer as kept, as detection would have.
+                _ => {
+                    let kept = self
+                        .below_layers
+                        .iter()
+                        .find(|b| b.index == *j && b.kind == layer.kind)?;
+                    made = crate::geometry::printed_area(kept, &self.opts.detect.area);
+                    &made
+                }
+            };
+            joined = crate::geometry::union(&joined, area);
         }
         Some(joined)
     }

@@ -1028,6 +1028,36 @@ fn a_chamfer_beside_a_part_of_another_layer_height_keeps_its_next_layer_held() {
     );
 }
 
+/// A hull at 0.1 mm layers beside a shelf at 0.2 mm and a triangle at 0.3 mm: the hull's
+/// third layer rests on its second and on the first layer of all three. Its second layer's
+/// gradual rewrite moved the bow's perimeter; the third was not planned on it, the first
+/// layer's area (never made: detection proved that layer) missing from what it rests on,
+/// and its bow hung 1.1 mm more than as sliced.
+#[test]
+fn a_hull_beside_parts_of_two_other_layer_heights_keeps_every_layer_held() {
+    if !have_prusaslicer() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let amf = dir.path().join("plate.amf");
+    write_amf(
+        &[
+            (&part("shelves_hole"), [50.0, 60.0], Some(0.2)),
+            (&part("hull"), [140.0, 60.0], Some(0.1)),
+            (&part("tri_overhang"), [100.0, 150.0], Some(0.3)),
+        ],
+        &amf,
+    );
+    let Some(d) = slice_stl_defaults(&amf, &["--first-layer-height", "0.2"]) else {
+        return;
+    };
+    let (new, _) = rewrite(&d, BridgeMode::Auto);
+    let what = "hull beside parts at two other layer heights";
+    let (before, after) = before_after(what, &d, &new);
+    no_layer_worse(what, &before, &after);
+    cut_to(what, &before, &after, 0.01);
+}
+
 /// PrusaSlicer with thick bridges, four perimeters, cubic infill, concentric top and the seam
 /// at the rear (a held-out settings set).
 const THICK_BRIDGES: &[&str] = &[
