@@ -3603,7 +3603,8 @@ pub fn process<R: BufRead + Send, W: Write + Send>(
     // (support layers interleaved at their own heights, another object's layers on a plate
     // of several layer heights). A hull's tip by PrusaSlicer with support: its perimeter was
     // moved in with nothing known above (the next layer was support alone), and the part's
-    // next layer, resting on it across the support layer, hung 0.9 -> 25 mm more in air.
+    // next layer, resting on it across the support layer, hung 25 mm more in air than as
+    // sliced (13.5 -> 38.3 mm).
     let mut push = {
         let mut pending: std::collections::VecDeque<crate::geometry::Detected> =
             std::collections::VecDeque::new();
