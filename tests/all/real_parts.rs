@@ -1002,25 +1002,14 @@ fn a_hull_on_support_layers_of_their_own_keeps_its_next_layer_held() {
 /// rewritten.
 #[test]
 fn a_chamfer_beside_a_part_of_another_layer_height_keeps_its_next_layer_held() {
-    if !have_prusaslicer() {
-        return;
-    }
-    let dir = tempfile::tempdir().unwrap();
-    let amf = dir.path().join("plate.amf");
-    write_amf(
-        &[
-            (&part("chamfer_box"), [60.0, 100.0], Some(0.1)),
-            (&part("arms60"), [140.0, 100.0], Some(0.25)),
-        ],
-        &amf,
-    );
-    let Some(d) = slice_stl_defaults(&amf, &["--first-layer-height", "0.2"]) else {
+    let what = "chamfer box and arms at two layer heights";
+    let plate = [
+        ("chamfer_box", [60.0, 100.0], 0.1),
+        ("arms60", [140.0, 100.0], 0.25),
+    ];
+    let Some((_, after)) = mixed_heights_rewrite(what, &plate) else {
         return;
     };
-    let (new, _) = rewrite(&d, BridgeMode::Auto);
-    let what = "chamfer box and arms at two layer heights";
-    let (before, after) = before_after(what, &d, &new);
-    no_layer_worse(what, &before, &after);
     assert!(
         after.in_air_mm < 2.0,
         "{what}: {:.1} mm in air after the rewrite",
@@ -1035,27 +1024,42 @@ fn a_chamfer_beside_a_part_of_another_layer_height_keeps_its_next_layer_held() {
 /// and its bow hung 1.1 mm more than as sliced.
 #[test]
 fn a_hull_beside_parts_of_two_other_layer_heights_keeps_every_layer_held() {
-    if !have_prusaslicer() {
+    let what = "hull beside parts at two other layer heights";
+    let plate = [
+        ("shelves_hole", [50.0, 60.0], 0.2),
+        ("hull", [140.0, 60.0], 0.1),
+        ("tri_overhang", [100.0, 150.0], 0.3),
+    ];
+    let Some((before, after)) = mixed_heights_rewrite(what, &plate) else {
         return;
+    };
+    cut_to(what, &before, &after, 0.01);
+}
+
+/// A plate of test parts, each at (offset, layer height), sliced by PrusaSlicer's defaults
+/// (first layer 0.2 mm) and rewritten: the deposition check before and after, no layer
+/// worse than sliced. `None` without PrusaSlicer.
+fn mixed_heights_rewrite(
+    what: &str,
+    parts: &[(&str, [f64; 2], f64)],
+) -> Option<(CheckReport, CheckReport)> {
+    if !have_prusaslicer() {
+        return None;
     }
     let dir = tempfile::tempdir().unwrap();
     let amf = dir.path().join("plate.amf");
-    write_amf(
-        &[
-            (&part("shelves_hole"), [50.0, 60.0], Some(0.2)),
-            (&part("hull"), [140.0, 60.0], Some(0.1)),
-            (&part("tri_overhang"), [100.0, 150.0], Some(0.3)),
-        ],
-        &amf,
-    );
-    let Some(d) = slice_stl_defaults(&amf, &["--first-layer-height", "0.2"]) else {
-        return;
-    };
+    let stls: Vec<_> = parts.iter().map(|(name, _, _)| part(name)).collect();
+    let objects: Vec<_> = stls
+        .iter()
+        .zip(parts)
+        .map(|(stl, (_, at, h))| (stl.as_path(), *at, Some(*h)))
+        .collect();
+    write_amf(&objects, &amf);
+    let d = slice_stl_defaults(&amf, &["--first-layer-height", "0.2"])?;
     let (new, _) = rewrite(&d, BridgeMode::Auto);
-    let what = "hull beside parts at two other layer heights";
     let (before, after) = before_after(what, &d, &new);
     no_layer_worse(what, &before, &after);
-    cut_to(what, &before, &after, 0.01);
+    Some((before, after))
 }
 
 /// PrusaSlicer with thick bridges, four perimeters, cubic infill, concentric top and the seam
