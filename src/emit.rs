@@ -3606,19 +3606,21 @@ pub fn process<R: BufRead + Send, W: Write + Send>(
     // next layer, resting on it across the support layer, hung 25 mm more in air than as
     // sliced (13.5 -> 38.3 mm).
     let mut push = {
-        let mut pending: std::collections::VecDeque<crate::geometry::Detected> =
+        // Each held layer with its weight ([`crate::geometry::detect::weight`]).
+        let mut pending: std::collections::VecDeque<(crate::geometry::Detected, usize)> =
             std::collections::VecDeque::new();
         let mut held = 0usize;
         move |d: Option<crate::geometry::Detected>| -> io::Result<()> {
             let end = d.is_none();
             if let Some(d) = d {
-                held += crate::geometry::detect::weight(&d.layer);
-                pending.push_back(d);
+                let w = crate::geometry::detect::weight(&d.layer);
+                held += w;
+                pending.push_back((d, w));
             }
-            while let Some(front) = pending.front() {
+            while let Some((front, _)) = pending.front() {
                 let index = front.layer.index;
                 let on_it = |part: bool| {
-                    pending.iter().skip(1).position(|a| {
+                    pending.iter().skip(1).position(|(a, _)| {
                         a.layer.rests_on.contains(&index) && (!part || prints_part(&a.layer))
                     })
                 };
@@ -3632,9 +3634,11 @@ pub fn process<R: BufRead + Send, W: Write + Send>(
                     None if end || full => on_it(false),
                     None => break,
                 };
-                let Some(p) = pending.pop_front() else { break };
-                held = held.saturating_sub(crate::geometry::detect::weight(&p.layer));
-                handle(p, above.and_then(|k| pending.get(k)))?;
+                let Some((p, w)) = pending.pop_front() else {
+                    break;
+                };
+                held -= w;
+                handle(p, above.and_then(|k| pending.get(k)).map(|(a, _)| a))?;
             }
             Ok(())
         }
