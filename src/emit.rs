@@ -2798,7 +2798,17 @@ impl PoaPass<'_> {
         let rewrites = if chosen.is_empty() {
             Vec::new()
         } else {
-            self.plan_best(d, area(), &left, &chosen, above, above_regions)
+            // A part's regions are planned in the part's area: support printed beside it is
+            // no outline for its perimeter (a hull's bow by PrusaSlicer with support).
+            let part = crate::geometry::area::part_area(&d.layer, &self.opts.detect.area);
+            self.plan_best(
+                d,
+                part.as_ref().unwrap_or_else(|| area()),
+                &left,
+                &chosen,
+                above,
+                above_regions,
+            )
         };
         let layer = &d.layer;
         let below = resting_on(&self.below_layers, layer);

@@ -968,23 +968,7 @@ fn is_support(role: Role) -> bool {
 /// holding the part's infill, and the layer would claim rows of air that the same support
 /// alone (on a layer of its own height) leaves open.
 fn with_support(layer: &Layer, opts: &AreaOptions) -> MultiPolygon<f64> {
-    let part = Layer {
-        paths: layer
-            .paths
-            .iter()
-            .filter(|p| !is_support(p.role))
-            .cloned()
-            .collect(),
-        raw: Vec::new(),
-        start: None,
-        objects: None,
-        rests_on: Vec::new(),
-        contact: Vec::new(),
-        gap_below: Vec::new(),
-        helical: false,
-        ..*layer
-    };
-    let part_area = printed_area(&part, opts);
+    let part_area = printed_area(&without_support(layer), opts);
     let support_area = support_area(
         layer
             .paths
@@ -1004,6 +988,37 @@ pub fn support_area<'a>(
 ) -> MultiPolygon<f64> {
     let support = Strands::of_lines(lines).buffer();
     close_holes(support, |hole| hole_width_below(hole, opts.gap_close))
+}
+
+/// `layer`'s strands but its support material's, in a layer of their own (no raw text).
+fn without_support(layer: &Layer) -> Layer {
+    Layer {
+        paths: layer
+            .paths
+            .iter()
+            .filter(|p| !is_support(p.role))
+            .cloned()
+            .collect(),
+        raw: Vec::new(),
+        start: None,
+        objects: None,
+        rests_on: Vec::new(),
+        contact: Vec::new(),
+        gap_below: Vec::new(),
+        helical: false,
+        ..*layer
+    }
+}
+
+/// The area the part prints in a layer that prints support material beside it (`None` for
+/// a layer without support, or of support alone, whose printed area is the part's as it
+/// is): what a part's region is planned in. Support merged into the part's outline there
+/// moved the part's perimeter along the support's edge, and its bead-round scallops cost a
+/// hull's plan 40 ms an offset.
+pub fn part_area(layer: &Layer, opts: &AreaOptions) -> Option<MultiPolygon<f64>> {
+    let support = layer.paths.iter().filter(|p| is_support(p.role)).count();
+    (support > 0 && support < layer.paths.len())
+        .then(|| printed_area(&without_support(layer), opts))
 }
 
 /// Whether a path's first, middle and last points lie in `area`.
@@ -1693,6 +1708,38 @@ mod tests {
             0.45,
             &[[x0, y0], [x1, y0], [x1, y1], [x0, y1], [x0, y0]],
         )
+    }
+
+    #[test]
+    fn a_part_s_area_leaves_out_the_support_printed_beside_it() {
+        // A 10 x 10 walled square with infill and support lines 0.2 mm off its right side: the layer's
+        // printed area joins them; the part's is the square alone, and a layer of walls or
+        // of support alone has no part area of its own.
+        let part = square_loop(Role::ExternalPerimeter, 0.225, 0.225, 9.775, 9.775);
+        let support: Vec<Path> = (0..8)
+            .map(|i| {
+                let y = 0.5 + 1.2 * i as f64;
+                path(Role::Support, 0.4, &[[10.2, y], [14.0, y]])
+            })
+            .collect();
+        let opts = AreaOptions::default();
+        let infill = path(Role::Infill, 0.45, &[[1.0, 1.0], [9.0, 9.0]]);
+        let mut paths = vec![part.clone(), infill];
+        paths.extend(support.iter().cloned());
+        let l = layer(paths);
+        let whole = printed_area(&l, &opts);
+        let own = part_area(&l, &opts).expect("a layer of part and support");
+        assert!(whole.unsigned_area() > 110.0, "{}", whole.unsigned_area());
+        assert!(
+            (own.unsigned_area() - 100.0).abs() < 0.5,
+            "{}",
+            own.unsigned_area()
+        );
+        use geo::BoundingRect;
+        let b = own.bounding_rect().unwrap();
+        assert!(b.max().x < 10.01 && b.min().x > -0.01, "{b:?}");
+        assert!(part_area(&layer(vec![part]), &opts).is_none());
+        assert!(part_area(&layer(support), &opts).is_none());
     }
 
     #[test]
