@@ -342,6 +342,15 @@ impl SlicerConfig {
         }
     }
 
+    /// The slowest speed the slicer slows printing to for cooling, where the file states one
+    /// (PrusaSlicer and SuperSlicer `min_print_speed`, OrcaSlicer and Bambu Studio
+    /// `slow_down_min_speed`, Cura `cool_min_speed`); 0 (off) states none.
+    pub fn cooling_min_speed(&self) -> Option<f64> {
+        ["min_print_speed", "slow_down_min_speed", "cool_min_speed"]
+            .iter()
+            .find_map(|k| self.number(k).filter(|v| *v > 0.0))
+    }
+
     /// Filament density in g/cm3.
     pub fn filament_density(&self) -> f64 {
         self.number("filament_density")
@@ -365,6 +374,9 @@ pub const SLICER_RANGES: &[(&str, f64, f64, &str)] = &[
     ("extrusion_width", 0.05, 10.0, "mm"),
     ("first_layer_extrusion_width", 0.05, 10.0, "mm"),
     ("bridge_speed", 0.1, 2000.0, "mm/s"),
+    ("min_print_speed", 0.1, 2000.0, "mm/s"),
+    ("slow_down_min_speed", 0.1, 2000.0, "mm/s"),
+    ("cool_min_speed", 0.1, 2000.0, "mm/s"),
     ("travel_speed", 0.1, 5000.0, "mm/s"),
     ("travel_speed_z", 0.1, 5000.0, "mm/s"),
     ("retract_length", 0.0, 100.0, "mm"),

@@ -42,6 +42,8 @@ pub struct Motion {
     /// Loop and perimeter speeds, resolved from the settings and the file.
     pub loop_speed: MmPerS,
     pub perimeter_speed: MmPerS,
+    /// Slowest speed a loop is slowed to for cooling ([`slowed_for_cooling`]).
+    pub cooling_floor: MmPerS,
 }
 
 impl Motion {
@@ -58,6 +60,17 @@ impl Motion {
             travel: TravelStyle::from_config(config),
             loop_speed: MmPerS(loop_speed),
             perimeter_speed: MmPerS(settings.perimeter_speed.unwrap_or(loop_speed).max(1.0)),
+            // The slicer's own floor for cooling where it states one: a user who keeps
+            // PrusaSlicer from printing slower than 10 mm/s gets no 5 mm/s loops from poa
+            // either (a wheel's 0.4 mm ladder rungs at 5 mm/s were half its one rewritten
+            // layer's time, and could not take their half second even so).
+            cooling_floor: MmPerS(
+                settings
+                    .min_loop_speed
+                    .or_else(|| config.cooling_min_speed().map(|v| v.max(COOLING_FLOOR.0)))
+                    .unwrap_or(COOLING_FLOOR.0)
+                    .max(1.0),
+            ),
         }
     }
 
@@ -1500,6 +1513,7 @@ fn emit_block(
                 motion.loop_speed,
                 loop_lengths.get(&s.loop_index).copied().unwrap_or(0.0),
                 settings.min_loop_time,
+                motion.cooling_floor,
             ),
             _ => motion.loop_speed,
         };
@@ -1678,17 +1692,17 @@ fn over_laid<'a>(
     })
 }
 
-/// Slowest speed poa slows a loop to for cooling: slower, the bead of a 0.4 mm nozzle no
-/// longer comes out even.
+/// Slowest speed poa slows a loop to for cooling unless told otherwise (`min_loop_speed`):
+/// slower, the bead of a 0.4 mm nozzle no longer comes out even.
 const COOLING_FLOOR: MmPerS = MmPerS(5.0);
 
 /// The speed at which a loop of `length` mm takes at least `min_time` s, never above `speed`
-/// nor below [`COOLING_FLOOR`].
-fn slowed_for_cooling(speed: MmPerS, length: f64, min_time: f64) -> MmPerS {
+/// nor below `floor`.
+fn slowed_for_cooling(speed: MmPerS, length: f64, min_time: f64, floor: MmPerS) -> MmPerS {
     if min_time <= 0.0 || length <= 0.0 || length / speed.0 >= min_time {
         return speed;
     }
-    MmPerS((length / min_time).max(COOLING_FLOOR.0).min(speed.0))
+    MmPerS((length / min_time).max(floor.0).min(speed.0))
 }
 
 fn dist(a: [f64; 3], b: [f64; 2]) -> f64 {
@@ -4323,10 +4337,35 @@ mod tests {
     #[test]
     fn short_loops_are_slowed_to_their_cooling_time_within_limits() {
         let v = MmPerS(25.0);
-        assert_eq!(slowed_for_cooling(v, 50.0, 1.0), v);
-        assert_eq!(slowed_for_cooling(v, 10.0, 1.0), MmPerS(10.0));
-        assert_eq!(slowed_for_cooling(v, 2.0, 1.0), COOLING_FLOOR);
-        assert_eq!(slowed_for_cooling(v, 10.0, 0.0), v);
+        let floor = COOLING_FLOOR;
+        assert_eq!(slowed_for_cooling(v, 50.0, 1.0, floor), v);
+        assert_eq!(slowed_for_cooling(v, 10.0, 1.0, floor), MmPerS(10.0));
+        assert_eq!(slowed_for_cooling(v, 2.0, 1.0, floor), COOLING_FLOOR);
+        assert_eq!(slowed_for_cooling(v, 10.0, 0.0, floor), v);
+        assert_eq!(slowed_for_cooling(v, 2.0, 1.0, MmPerS(12.0)), MmPerS(12.0));
+        // A floor above the loop speed slows nothing.
+        assert_eq!(slowed_for_cooling(v, 2.0, 1.0, MmPerS(40.0)), v);
+    }
+
+    #[test]
+    fn loops_are_slowed_no_further_than_the_slicer_s_own_cooling_floor() {
+        // PrusaSlicer's min_print_speed, OrcaSlicer's slow_down_min_speed, Cura's
+        // cool_min_speed; never under poa's 5 mm/s; the setting overrides; 0 states none.
+        let floor = |text: &[u8], set: Option<f64>| {
+            let settings = PoaSettings {
+                min_loop_speed: set,
+                ..PoaSettings::default()
+            };
+            Motion::from_config(&SlicerConfig::parse(text), &settings).cooling_floor
+        };
+        assert_eq!(floor(b"; min_print_speed = 10\n", None), MmPerS(10.0));
+        assert_eq!(floor(b"; slow_down_min_speed = 20\n", None), MmPerS(20.0));
+        let cura = b";SETTING_3 {\"global_quality\": \"[values]\\\\ncool_min_speed = 12\\\\n\"}\n";
+        assert_eq!(floor(cura, None), MmPerS(12.0));
+        assert_eq!(floor(b"; min_print_speed = 2\n", None), COOLING_FLOOR);
+        assert_eq!(floor(b"; min_print_speed = 0\n", None), COOLING_FLOOR);
+        assert_eq!(floor(b"", None), COOLING_FLOOR);
+        assert_eq!(floor(b"; min_print_speed = 10\n", Some(3.0)), MmPerS(3.0));
     }
 
     #[test]

@@ -57,6 +57,9 @@ pub struct PoaSettings {
     pub dwell: f64,
     /// Shortest time a loop takes, seconds (shorter loops are slowed).
     pub min_loop_time: f64,
+    /// Slowest speed a loop is slowed to for its minimum time; `None` uses the file's minimum
+    /// print speed for cooling (not under 5 mm/s).
+    pub min_loop_speed: Option<f64>,
     /// Multiplier on the flow-model extrusion of every strand poa writes.
     pub flow_factor: f64,
     /// How far the region's external perimeter is pulled inward.

@@ -336,3 +336,64 @@ fn analyze_of_a_rewritten_file_says_so_and_reports_what_is_still_in_air() {
     let v: serde_json::Value = serde_json::from_slice(&orig.stdout).unwrap();
     assert!(v["rewritten_by_poa"].is_null());
 }
+
+/// The slowest feedrate (mm/min) poa's loops extrude at in `text`: `G1 F..` lines between
+/// `;POA_BEGIN` and `;POA_END`, followed by an extruding move.
+fn slowest_loop_feed(text: &str) -> f64 {
+    let (mut inside, mut feed, mut slowest) = (false, f64::MAX, f64::MAX);
+    for line in text.lines() {
+        if line.starts_with(";POA_BEGIN") {
+            inside = true;
+        } else if line.starts_with(";POA_END") {
+            inside = false;
+        } else if inside && line.starts_with("G1") {
+            let words: Vec<&str> = line.split(';').next().unwrap().split_whitespace().collect();
+            if let Some(f) = words.iter().find_map(|w| w.strip_prefix('F')) {
+                feed = f.parse().unwrap();
+            }
+            let extrudes = words.iter().any(|w| w.starts_with('E'))
+                && words
+                    .iter()
+                    .any(|w| w.starts_with('X') || w.starts_with('Y'));
+            if extrudes {
+                slowest = slowest.min(feed);
+            }
+        }
+    }
+    slowest
+}
+
+#[test]
+fn short_loops_slow_down_no_further_than_the_file_s_minimum_print_speed() {
+    // The triangle's tip: loops shorter than half a second's print. The file says
+    // `min_print_speed = 15`: poa's loops go no slower; `--min-loop-speed 5` lets them.
+    let f = sample("tri_overhang_prusa_abs.gcode");
+    let dir = tempfile::tempdir().unwrap();
+    let run = |extra: &[&str]| -> f64 {
+        let out_path = dir.path().join("out.gcode");
+        let mut args = vec![
+            "process",
+            f.to_str().unwrap(),
+            "-o",
+            out_path.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        let out = poa(&args);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        slowest_loop_feed(&std::fs::read_to_string(&out_path).unwrap())
+    };
+    assert!(std::fs::read_to_string(&f)
+        .unwrap()
+        .contains("; min_print_speed = 15\n"));
+    assert_eq!(run(&[]), 900.0, "15 mm/s");
+    assert_eq!(run(&["--min-loop-speed", "5"]), 300.0, "5 mm/s");
+    assert_eq!(
+        run(&["--set", "min_loop_time=0"]),
+        1500.0,
+        "no slowing: the bridge speed"
+    );
+}

@@ -244,6 +244,8 @@ pub struct RewriteArgs {
     pub dwell: Option<f64>,
     #[arg(long, value_name = "S", help = settings::flag_help("min_loop_time"))]
     pub min_loop_time: Option<f64>,
+    #[arg(long, value_name = "MM/S", help = settings::flag_help("min_loop_speed"))]
+    pub min_loop_speed: Option<f64>,
     #[arg(long, value_name = "FACTOR", help = settings::flag_help("flow_factor"))]
     pub flow: Option<f64>,
     #[arg(long, value_name = "MM", help = settings::flag_help("perimeter_inset"))]
@@ -435,6 +437,7 @@ impl RewriteArgs {
         num("fan", self.fan);
         num("dwell", self.dwell);
         num("min_loop_time", self.min_loop_time);
+        num("min_loop_speed", self.min_loop_speed);
         num("flow_factor", self.flow);
         num("perimeter_inset", self.perimeter_inset);
         num("temperature_offset", self.temperature_offset);
