@@ -294,6 +294,33 @@ pub fn plan(
     }
 }
 
+/// `area` without its holes smaller than a bead (under `w` x `w` in area, and no more than
+/// two beads across): the gaps the slicer's walls leave where they meet (a wheel's spoke
+/// running into its rim: 0.3 mm holes either side of the spoke's end). No part has a hole a
+/// bead cannot print round; grown by the contour's inset, such a gap cut the loop area
+/// through at the joint, and the fronts crossed it printing nothing for four steps, so the
+/// rim's first loops there hung (1.8 mm in air at each of six joints).
+fn without_specks(area: MultiPolygon<f64>, w: f64) -> MultiPolygon<f64> {
+    use geo::BoundingRect;
+    let speck = |r: &geo::LineString<f64>| {
+        geo::Polygon::new(r.clone(), Vec::new()).unsigned_area() < w * w
+            && r.bounding_rect()
+                .is_some_and(|b| b.width().max(b.height()) <= 2.0 * w)
+    };
+    if !area.0.iter().any(|p| p.interiors().iter().any(speck)) {
+        return area;
+    }
+    MultiPolygon::new(
+        area.0
+            .into_iter()
+            .map(|p| {
+                let (ext, holes) = p.into_inner();
+                geo::Polygon::new(ext, holes.into_iter().filter(|h| !speck(h)).collect())
+            })
+            .collect(),
+    )
+}
+
 /// [`plan`] from the [`windows`] made for `region` already.
 pub(super) fn plan_in(
     region: &Region,
@@ -313,7 +340,7 @@ pub(super) fn plan_in(
     // Gaps narrower than half a bead in what the layer prints are no gaps (beads squash
     // into them): closed, so that an island of walls the slicer set 0.07 mm off the skin (a
     // slot's walls by Cura, outer wall first) is part of the outline the perimeter follows.
-    let area_loc = closing(area_cut, w / 4.0);
+    let area_loc = without_specks(closing(area_cut, w / 4.0), w);
 
     // The zone: what sectB prints beyond sectA around this region, slivers dropped.
     // Simplified by 2 um before the opening: the booleans leave thousands of points on a
@@ -2306,6 +2333,30 @@ mod tests {
     use geo::{Contains, Polygon};
 
     const W: f64 = 0.45;
+
+    #[test]
+    fn gaps_smaller_than_a_bead_are_no_holes_to_plan_round() {
+        // A 10 x 10 area with a 0.3 mm gap (where two walls meet), a 1 mm hole and a
+        // 0.3 x 3 mm slot: the gap is filled, the hole and the slot stay.
+        let hole = |x0: f64, y0: f64, x1: f64, y1: f64| rect(x0, y0, x1, y1).exterior().clone();
+        let area = mp(vec![Polygon::new(
+            rect(0.0, 0.0, 10.0, 10.0).exterior().clone(),
+            vec![
+                hole(1.0, 1.0, 1.3, 1.3),
+                hole(4.0, 4.0, 5.0, 5.0),
+                hole(7.0, 2.0, 7.3, 5.0),
+            ],
+        )]);
+        let out = without_specks(area, W);
+        let holes: Vec<f64> = out.0[0]
+            .interiors()
+            .iter()
+            .map(|h| Polygon::new(h.clone(), Vec::new()).unsigned_area())
+            .collect();
+        assert_eq!(holes.len(), 2, "{holes:?}");
+        assert!((holes[0] - 1.0).abs() < 1e-9 && (holes[1] - 0.9).abs() < 1e-9);
+        assert!((out.unsigned_area() - (100.0 - 1.9)).abs() < 1e-9);
+    }
 
     #[test]
     fn strands_are_turned_end_for_end_to_shorten_the_travel_in_their_order() {
