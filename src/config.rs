@@ -17,7 +17,14 @@ pub struct SlicerConfig {
     from_env: Vec<String>,
     /// Keys poa inferred from the file's moves (the file states none), with why.
     inferred: Vec<(String, String)>,
+    /// The file names CuraEngine as its maker (`;Generated with Cura_SteamEngine`): Cura
+    /// writes only the settings the user changed, so a setting it leaves out has Cura's
+    /// default.
+    cura: bool,
 }
+
+/// Cura's default `cool_min_speed` (mm/s, its `fdmprinter` definition).
+const CURA_COOL_MIN_SPEED: f64 = 10.0;
 
 /// How many bytes of the head and of the tail of a file hold its configuration.
 pub const HEAD_BYTES: u64 = 64 * 1024;
@@ -53,6 +60,9 @@ impl SlicerConfig {
                 continue;
             }
             let rest = rest.trim();
+            if rest.starts_with("Generated with Cura_SteamEngine") {
+                self.cura = true;
+            }
             if let Some((k, v)) = rest.split_once(" = ") {
                 let k = k.trim();
                 if !k.is_empty() && k.bytes().all(|b| b.is_ascii_alphanumeric() || b == b'_') {
@@ -344,8 +354,15 @@ impl SlicerConfig {
 
     /// The slowest speed the slicer slows printing to for cooling, where the file states one
     /// (PrusaSlicer and SuperSlicer `min_print_speed`, OrcaSlicer and Bambu Studio
-    /// `slow_down_min_speed`, Cura `cool_min_speed`); 0 (off) states none.
+    /// `slow_down_min_speed`, Cura `cool_min_speed`); 0 (off) states none. A file by Cura
+    /// that leaves it out has Cura's default, 10 mm/s.
     pub fn cooling_min_speed(&self) -> Option<f64> {
+        self.stated_cooling_min_speed()
+            .or(self.cura.then_some(CURA_COOL_MIN_SPEED))
+    }
+
+    /// [`SlicerConfig::cooling_min_speed`] as the file states it.
+    pub fn stated_cooling_min_speed(&self) -> Option<f64> {
         ["min_print_speed", "slow_down_min_speed", "cool_min_speed"]
             .iter()
             .find_map(|k| self.number(k).filter(|v| *v > 0.0))

@@ -51,7 +51,7 @@ pub const SPECS: &[Spec] = &[
     Spec { key: "fan", kind: Kind::Number { min: 0.0, max: 100.0 }, default: "100", unit: "%", help: "part-cooling fan during loops" },
     Spec { key: "dwell", kind: Kind::Number { min: 0.0, max: 60.0 }, default: "0", unit: "s", help: "pause after each loop" },
     Spec { key: "min_loop_time", kind: Kind::Number { min: 0.0, max: 60.0 }, default: "0.5", unit: "s", help: "shortest time a loop takes: shorter loops (near a region's tip) are slowed, down to min_loop_speed, so each sets before the next leans on it" },
-    Spec { key: "min_loop_speed", kind: Kind::Auto { min: 1.0, max: 500.0 }, default: "auto", unit: "mm/s", help: "slowest speed a loop is slowed to for its minimum time (auto: the file's minimum print speed for cooling, PrusaSlicer's min_print_speed, OrcaSlicer's slow_down_min_speed or Cura's cool_min_speed, but not under 5 mm/s; 5 mm/s where the file states none)" },
+    Spec { key: "min_loop_speed", kind: Kind::Auto { min: 1.0, max: 500.0 }, default: "auto", unit: "mm/s", help: "slowest speed a loop is slowed to for its minimum time (auto: the file's minimum print speed for cooling, PrusaSlicer's min_print_speed, OrcaSlicer's slow_down_min_speed or Cura's cool_min_speed, 10 mm/s where Cura leaves it at its default; not under 5 mm/s; 5 mm/s where the file states none)" },
     Spec { key: "flow_factor", kind: Kind::Number { min: 0.5, max: 2.0 }, default: "1.0", unit: "", help: "extrusion multiplier for poa's strands" },
     Spec { key: "perimeter_inset", kind: Kind::Number { min: 0.0, max: 2.0 }, default: "0.05", unit: "mm", help: "how far the region's outer perimeter is pulled inward" },
     Spec { key: "temperature_offset", kind: Kind::Number { min: -50.0, max: 50.0 }, default: "0", unit: "C", help: "nozzle temperature change while printing loops" },
@@ -516,8 +516,10 @@ pub fn describe(eff: &Effective, config: &SlicerConfig) -> String {
             "perimeter_speed" => (motion.perimeter_speed.to_string(), "auto: loop_speed"),
             "min_loop_speed" => (
                 motion.cooling_floor.to_string(),
-                if config.cooling_min_speed().is_some() {
+                if config.stated_cooling_min_speed().is_some() {
                     "auto: the file's min print speed"
+                } else if config.cooling_min_speed().is_some() {
+                    "auto: Cura's default min speed"
                 } else {
                     "auto: none in the file"
                 },
