@@ -4363,7 +4363,10 @@ mod tests {
         let cura = b";SETTING_3 {\"global_quality\": \"[values]\\\\ncool_min_speed = 12\\\\n\"}\n";
         assert_eq!(floor(cura, None), MmPerS(12.0));
         // Cura writes only what the user changed: left out, its default.
-        assert_eq!(floor(b";Generated with Cura_SteamEngine 4.13.0\n", None), MmPerS(10.0));
+        assert_eq!(
+            floor(b";Generated with Cura_SteamEngine 4.13.0\n", None),
+            MmPerS(10.0)
+        );
         assert_eq!(floor(b"; min_print_speed = 2\n", None), COOLING_FLOOR);
         assert_eq!(floor(b"; min_print_speed = 0\n", None), COOLING_FLOOR);
         assert_eq!(floor(b"", None), COOLING_FLOOR);
