@@ -710,10 +710,17 @@ fn merge_stats(stats: Vec<RewriteStats>, owner: &[usize]) -> Vec<RewriteStats> {
 
 /// The source lines of the layer's external (and overhang) perimeters, sorted.
 fn wall_lines(layer: &Layer) -> Vec<u64> {
+    lines_of(layer, |r| {
+        matches!(r, Role::ExternalPerimeter | Role::OverhangPerimeter)
+    })
+}
+
+/// The source lines of the layer's paths of the roles `keep` takes, sorted.
+fn lines_of(layer: &Layer, keep: impl Fn(Role) -> bool) -> Vec<u64> {
     let mut lines: Vec<u64> = layer
         .paths
         .iter()
-        .filter(|p| matches!(p.role, Role::ExternalPerimeter | Role::OverhangPerimeter))
+        .filter(|p| keep(p.role))
         .flat_map(|p| p.seg_line.iter().copied())
         .collect();
     lines.sort_unstable();
@@ -3385,7 +3392,15 @@ fn drop_held<'c>(
     let Some(c) = sliced() else {
         return (rewrites, Vec::new());
     };
-    let walls = wall_lines(layer);
+    // Every perimeter, not the external one alone: in a hollow part the wall's inner
+    // perimeter steps over the void inside the wall below (a lying pipe's bore side at 0 %
+    // infill: 56 mm in air a layer, its external perimeter held all along).
+    let walls = lines_of(layer, |r| {
+        matches!(
+            r,
+            Role::ExternalPerimeter | Role::OverhangPerimeter | Role::Perimeter
+        )
+    });
     let unheld: Vec<([f64; 2], bool)> = c
         .samples
         .iter()

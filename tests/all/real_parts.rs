@@ -2218,3 +2218,35 @@ fn a_wheel_s_spoke_joints_hold_the_rim_s_first_loops() {
         b.in_air_mm
     );
 }
+
+/// A pipe lying on two feet, sliced hollow (0 % infill, two perimeters) by PrusaSlicer's
+/// defaults: low on the bore's sides each layer's inner perimeter steps over the void inside
+/// the wall below, in air (56 mm a layer), while its external perimeter is held. The rewrite
+/// judged the external perimeter alone and left those regions as sliced ("the slicer's
+/// perimeter is held as sliced"); every perimeter counts now.
+#[test]
+fn a_hollow_pipe_s_inner_perimeters_over_its_walls_void_are_not_left_in_air() {
+    let args = [
+        "--fill-density",
+        "0%",
+        "--perimeters",
+        "2",
+        "--top-solid-layers",
+        "4",
+    ];
+    let Some(d) = slice_defaults("pipe_lying", &args) else {
+        return;
+    };
+    let what = "hollow lying pipe by PrusaSlicer";
+    let (new, _) = rewrite(&d, BridgeMode::Auto);
+    let (before, after) = before_after(what, &d, &new);
+    for l in [17, 18] {
+        let (b, a) = (&before.layers[l - 1], &after.layers[l - 1]);
+        assert!(
+            b.in_air_mm > 40.0 && a.in_air_mm <= 3.0,
+            "{what}: layer {l} {:.1} mm in air, {:.1} as sliced",
+            a.in_air_mm,
+            b.in_air_mm
+        );
+    }
+}
