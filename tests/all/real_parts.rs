@@ -2188,6 +2188,37 @@ fn a_lying_cylinder_s_underside_is_held_and_each_region_left_says_why() {
     }
 }
 
+/// `part` sliced by PrusaSlicer's own defaults plus `args` and rewritten: the check of the
+/// file as sliced and as rewritten, and the rewrite's report (`None`: no slicer here).
+fn defaults_rewritten(
+    part: &str,
+    args: &[&str],
+    what: &str,
+) -> Option<(CheckReport, CheckReport, printonair::emit::ProcessReport)> {
+    let d = slice_defaults(part, args)?;
+    let (new, rep) = rewrite(&d, BridgeMode::Auto);
+    let (before, after) = before_after(what, &d, &new);
+    Some((before, after, rep))
+}
+
+/// Layer `l` (1 = first) had more than `sliced` mm in air as sliced and has at most `left`.
+fn assert_layer_held(
+    what: &str,
+    before: &CheckReport,
+    after: &CheckReport,
+    l: usize,
+    sliced: f64,
+    left: f64,
+) {
+    let (b, a) = (&before.layers[l - 1], &after.layers[l - 1]);
+    assert!(
+        b.in_air_mm > sliced && a.in_air_mm <= left,
+        "{what}: layer {l} {:.1} mm in air, {:.1} as sliced",
+        a.in_air_mm,
+        b.in_air_mm
+    );
+}
+
 /// A wheel by PrusaSlicer's defaults at 0.12 mm layers and three perimeters: where each
 /// spoke runs into the rim the slicer's walls leave gaps of 0.3 mm. Grown by the contour's
 /// inset they cut the loop area through at every joint, the fronts crossed there printing
@@ -2203,20 +2234,12 @@ fn a_wheel_s_spoke_joints_hold_the_rim_s_first_loops() {
         "--fill-density",
         "20%",
     ];
-    let Some(d) = slice_defaults("wheel", &args) else {
+    let what = "wheel by PrusaSlicer at 0.12 mm";
+    let Some((before, after, rep)) = defaults_rewritten("wheel", &args, what) else {
         return;
     };
-    let what = "wheel by PrusaSlicer at 0.12 mm";
-    let (new, rep) = rewrite(&d, BridgeMode::Auto);
-    let (before, after) = before_after(what, &d, &new);
     let l = rep.rewrites.iter().map(|r| r.layer).min().expect(what);
-    let (b, a) = (&before.layers[l - 1], &after.layers[l - 1]);
-    assert!(
-        b.in_air_mm > 100.0 && a.in_air_mm <= 1.0,
-        "{what}: layer {l} {:.1} mm in air, {:.1} as sliced",
-        a.in_air_mm,
-        b.in_air_mm
-    );
+    assert_layer_held(what, &before, &after, l, 100.0, 1.0);
 }
 
 /// A pipe lying on two feet, sliced hollow (0 % infill, two perimeters) by PrusaSlicer's
@@ -2234,19 +2257,11 @@ fn a_hollow_pipe_s_inner_perimeters_over_its_walls_void_are_not_left_in_air() {
         "--top-solid-layers",
         "4",
     ];
-    let Some(d) = slice_defaults("pipe_lying", &args) else {
+    let what = "hollow lying pipe by PrusaSlicer";
+    let Some((before, after, _)) = defaults_rewritten("pipe_lying", &args, what) else {
         return;
     };
-    let what = "hollow lying pipe by PrusaSlicer";
-    let (new, _) = rewrite(&d, BridgeMode::Auto);
-    let (before, after) = before_after(what, &d, &new);
     for l in [17, 18] {
-        let (b, a) = (&before.layers[l - 1], &after.layers[l - 1]);
-        assert!(
-            b.in_air_mm > 40.0 && a.in_air_mm <= 3.0,
-            "{what}: layer {l} {:.1} mm in air, {:.1} as sliced",
-            a.in_air_mm,
-            b.in_air_mm
-        );
+        assert_layer_held(what, &before, &after, l, 40.0, 3.0);
     }
 }
