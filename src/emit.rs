@@ -34,6 +34,22 @@ use crate::progress::footer_line;
 pub use crate::progress::update_footer;
 use crate::writer::{fmt_num, MmPerMin, MmPerS, TravelStyle, Writer};
 
+/// Where the rewrite's text goes, block by block, in order: a block is a stretch of the input
+/// as it was read (`from_input`: its byte offset in the input) or bytes the rewrite made
+/// (`None`). Concatenated, the blocks are the output.
+pub trait Sink {
+    fn block(&mut self, bytes: &[u8], from_input: Option<u64>) -> io::Result<()>;
+}
+
+/// A [`Sink`] that writes every block to a writer.
+pub struct Plain<W>(pub W);
+
+impl<W: Write> Sink for Plain<W> {
+    fn block(&mut self, bytes: &[u8], _: Option<u64>) -> io::Result<()> {
+        self.0.write_all(bytes)
+    }
+}
+
 /// How the file moves between strands (its [`TravelStyle`]) and how fast poa prints.
 #[derive(Debug, Clone)]
 pub struct Motion {
@@ -3554,11 +3570,11 @@ fn prints_part(layer: &Layer) -> bool {
 /// Rewrites a whole file, streaming: reads `input`, writes `output`.
 ///
 /// Long by design: the streaming driver (read, detect, pass, header, footer) whose hand-over of held blocks must stay in one place to be correct.
-pub fn process<R: BufRead + Send, W: Write + Send>(
+pub fn process<R: BufRead + Send, S: Sink + Send + ?Sized>(
     input: R,
     config: SlicerConfig,
     opts: &ProcessOptions,
-    output: &mut W,
+    output: &mut S,
 ) -> io::Result<ProcessReport> {
     let mut pass = PoaPass::new(&config, opts);
     pass.report.notes = config
@@ -3580,8 +3596,13 @@ pub fn process<R: BufRead + Send, W: Write + Send>(
         },
     );
     let mut emitted = 0u64;
+    // Offset in the input of the next layer's first byte: the layers' raw bytes, in order,
+    // are the input.
+    let mut input_at = 0u64;
     let mut header_written = false;
-    let mut held: Option<Vec<u8>> = None;
+    // The block held back, in parts: (bytes, offset in the input when they are its bytes).
+    type Parts = Vec<(Vec<u8>, Option<u64>)>;
+    let mut held: Option<Parts> = None;
     // Each layer is rewritten once the next one is read: an end of a strand the layer above
     // rests on is not cut away.
     let mut handle = |d: crate::geometry::Detected,
@@ -3593,6 +3614,8 @@ pub fn process<R: BufRead + Send, W: Write + Send>(
         if d.layer.kind == crate::layers::LayerKind::Layer {
             pass.report.layers += 1;
         }
+        let at = input_at;
+        input_at += d.layer.raw.len() as u64;
         let rewritten = pass
             .layer_under(
                 &d,
@@ -3604,34 +3627,44 @@ pub fn process<R: BufRead + Send, W: Write + Send>(
         let report = &mut pass.report;
         let mut layer = d.layer;
         // A layer passed through is moved to the output, not copied.
-        let bytes = rewritten.unwrap_or_else(|| std::mem::take(&mut layer.raw));
-        let block = if !header_written && !bytes.is_empty() {
+        let from_input = rewritten.is_none().then_some(at);
+        let mut bytes = rewritten.unwrap_or_else(|| std::mem::take(&mut layer.raw));
+        let parts: Parts = if !header_written && !bytes.is_empty() {
             header_written = true;
             // After the first line: some tools read the slicer's name from line 1.
             let first = memchr::memchr(b'\n', &bytes)
                 .map(|i| i + 1)
                 .unwrap_or(bytes.len());
             let nl = line_end(&bytes);
-            let mut b = Vec::with_capacity(bytes.len() + opts.header.len() + 2);
-            b.extend_from_slice(&bytes[..first]);
+            let mut mid = Vec::with_capacity(opts.header.len() + 4);
             if first == bytes.len() && !bytes.ends_with(b"\n") {
-                b.extend_from_slice(nl.as_bytes());
+                mid.extend_from_slice(nl.as_bytes());
             }
-            b.extend_from_slice(opts.header.as_bytes());
-            b.extend_from_slice(nl.as_bytes());
-            b.extend_from_slice(&bytes[first..]);
-            b
+            mid.extend_from_slice(opts.header.as_bytes());
+            mid.extend_from_slice(nl.as_bytes());
+            let rest = bytes.split_off(first);
+            vec![
+                (bytes, from_input),
+                (mid, None),
+                (rest, from_input.map(|a| a + first as u64)),
+            ]
         } else {
-            bytes
+            vec![(bytes, from_input)]
         };
-        report.has_progress_lines |= has_progress_line(&block);
-        emitted += block.len() as u64;
+        for (b, _) in &parts {
+            report.has_progress_lines |= has_progress_line(b);
+            emitted += b.len() as u64;
+        }
         if let Some(last) = report.progress.last_mut().filter(|a| a.offset == 0) {
             last.offset = emitted;
         }
         // One block is held back: the slicer's statistics footer is in the last one.
-        if let Some(prev) = held.replace(block) {
-            output.write_all(&prev)?;
+        if let Some(prev) = held.replace(parts) {
+            for (b, from) in prev {
+                if !b.is_empty() {
+                    output.block(&b, from)?;
+                }
+            }
         }
         layer.raw = Vec::new();
         pass.keep_below(layer);
@@ -3774,15 +3807,26 @@ pub fn process<R: BufRead + Send, W: Write + Send>(
     report.filament_added_g = report.filament_added_cm3 * density;
     if let Some(last) = held {
         if report.regions_rewritten > 0 {
-            output.write_all(&update_footer(
-                &last,
-                report.filament_added_mm,
-                report.time_added_s,
-                real_area,
-                density,
-            ))?;
+            output.block(
+                &update_footer(
+                    &last
+                        .into_iter()
+                        .map(|(b, _)| b)
+                        .collect::<Vec<_>>()
+                        .concat(),
+                    report.filament_added_mm,
+                    report.time_added_s,
+                    real_area,
+                    density,
+                ),
+                None,
+            )?;
         } else {
-            output.write_all(&last)?;
+            for (b, from) in last {
+                if !b.is_empty() {
+                    output.block(&b, from)?;
+                }
+            }
         }
     }
     report.slicer = reader.facts().slicer.name().to_string();
@@ -3995,7 +4039,7 @@ mod tests {
         assert!(g.len() > 2 * EMIT_AHEAD_BYTES);
         let (tx, rx) = std::sync::mpsc::channel();
         std::thread::spawn(move || {
-            let r = process(g.as_bytes(), config, &opts, &mut Failing);
+            let r = process(g.as_bytes(), config, &opts, &mut Plain(Failing));
             let _ = tx.send(r.map(|_| ()).map_err(|e| e.to_string()));
         });
         let r = rx
@@ -4031,7 +4075,7 @@ mod tests {
             let config = SlicerConfig::parse(g.as_bytes());
             let opts = test_options(&config);
             let mut out = Vec::new();
-            process(g.as_bytes(), config, &opts, &mut out).unwrap()
+            process(g.as_bytes(), config, &opts, &mut Plain(&mut out)).unwrap()
         };
         let said = |r: &ProcessReport| r.notes.iter().any(|n| n.contains("another axis"));
         let stated = format!("{g}; filament used [mm] = 100.0\n");

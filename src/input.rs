@@ -36,6 +36,9 @@ pub struct Opened {
     /// The file's blocks other than G-code when it is binary G-code (the G-code is what
     /// `reader` yields).
     pub binary: Option<bgcode::stream::Layout>,
+    /// The text file itself, read again at its offsets by the finish stage
+    /// ([`crate::assemble`]); `None` for binary G-code, whose text is decoded.
+    pub file: Option<File>,
 }
 
 /// Opens `path`, checks that it looks like text G-code and reads its configuration.
@@ -76,6 +79,8 @@ pub fn open(path: &Path) -> Result<Opened> {
     }
     config.check()?;
     file.seek(SeekFrom::Start(0)).map_err(read_err)?;
+    // Positional reads of the clone leave the reader's position alone.
+    let again = file.try_clone().ok();
     Ok(Opened {
         // Up to the size it had: a file that keeps growing is not read forever.
         reader: Box::new(BufReader::with_capacity(READ_BUFFER, file.take(size))),
@@ -83,6 +88,7 @@ pub fn open(path: &Path) -> Result<Opened> {
         config,
         size,
         binary: None,
+        file: again,
     })
 }
 
@@ -263,6 +269,7 @@ fn open_binary(path: &Path, file: File, size: u64) -> Result<Opened> {
         config,
         size,
         binary: Some(layout),
+        file: None,
     })
 }
 

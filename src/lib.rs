@@ -18,6 +18,7 @@
 //! codes.
 
 pub mod ab;
+pub mod assemble;
 pub mod bgcode;
 pub mod check;
 pub mod config;

@@ -332,8 +332,9 @@ impl Write for Writeback {
     }
 }
 
+/// Asks the kernel to start writing back `len` bytes of `file` from `from` (a hint; no wait).
 #[cfg(target_os = "linux")]
-fn start_writeback(file: &File, from: u64, len: u64) {
+pub(crate) fn start_writeback(file: &File, from: u64, len: u64) {
     use std::os::fd::AsRawFd;
     let (Ok(from), Ok(len)) = (i64::try_from(from), i64::try_from(len)) else {
         return;
@@ -346,7 +347,7 @@ fn start_writeback(file: &File, from: u64, len: u64) {
 }
 
 #[cfg(not(target_os = "linux"))]
-fn start_writeback(_: &File, _: u64, _: u64) {}
+pub(crate) fn start_writeback(_: &File, _: u64, _: u64) {}
 
 /// Writes `bytes` to `dest` atomically.
 pub fn write_bytes(dest: &Path, inputs: &[&Path], bytes: &[u8]) -> Result<()> {
@@ -356,6 +357,61 @@ pub fn write_bytes(dest: &Path, inputs: &[&Path], bytes: &[u8]) -> Result<()> {
             source,
         })
     })
+}
+
+/// Syncs `file` (the temporary file `done`) and renames it over `real`, in folder `dir`.
+fn install(file: File, done: Temp, real: &Path, dir: &Path) -> io::Result<()> {
+    file.sync_all()?;
+    // Keep the original's permissions when replacing it, and its owner where this process
+    // may set it (run as root, the file stayed the user's, not root's).
+    if let Ok(meta) = fs::metadata(real) {
+        let _ = fs::set_permissions(&done.path, meta.permissions());
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::MetadataExt;
+            let _ = std::os::unix::fs::chown(&done.path, Some(meta.uid()), Some(meta.gid()));
+        }
+    }
+    fs::rename(&done.path, real)?;
+    done.keep();
+    // The rename itself reaches the disk with the folder.
+    if let Ok(d) = File::open(dir) {
+        let _ = d.sync_all();
+    }
+    Ok(())
+}
+
+/// Whether writing `dest` replaces a regular (or new) file by renaming one over it, rather
+/// than writing through to a device or FIFO. Refuses a destination that is an input or a
+/// folder.
+pub fn replaces_file(dest: &Path, inputs: &[&Path]) -> Result<bool> {
+    Ok(matches!(target(dest, inputs)?, Target::Replace(_)))
+}
+
+/// Writes `dest`, a regular or new file ([`replaces_file`]), atomically: `write` fills the
+/// open, empty temporary file at whatever offsets it likes (several threads may write at
+/// once), which is then synced and renamed over `dest`.
+pub fn write_atomic_at<T>(
+    dest: &Path,
+    inputs: &[&Path],
+    write: impl FnOnce(&File) -> Result<T>,
+) -> Result<T> {
+    let werr = |source: io::Error| Error::Write {
+        path: dest.to_path_buf(),
+        source,
+    };
+    let Target::Replace(real) = target(dest, inputs)? else {
+        return Err(Error::Invalid(format!(
+            "{} is not a regular file to replace",
+            dest.display()
+        )));
+    };
+    remove_stale_temps(&real);
+    let dir = dir_of(&real);
+    let (done, file) = Temp::create(&dir, &real).map_err(werr)?;
+    let value = write(&file)?;
+    install(file, done, &real, &dir).map_err(werr)?;
+    Ok(value)
 }
 
 /// [`write_atomic`] with an optional second pass over what the first wrote (numbers that
@@ -399,24 +455,7 @@ pub fn write_atomic_twice<T>(
                 // which the next run removes once this process is gone.
                 done = second;
             }
-            file.sync_all().map_err(werr)?;
-            // Keep the original's permissions when replacing it, and its owner where this
-            // process may set it (run as root, the file stayed the user's, not root's).
-            if let Ok(meta) = fs::metadata(&real) {
-                let _ = fs::set_permissions(&done.path, meta.permissions());
-                #[cfg(unix)]
-                {
-                    use std::os::unix::fs::MetadataExt;
-                    let _ =
-                        std::os::unix::fs::chown(&done.path, Some(meta.uid()), Some(meta.gid()));
-                }
-            }
-            fs::rename(&done.path, &real).map_err(werr)?;
-            done.keep();
-            // The rename itself reaches the disk with the folder.
-            if let Ok(d) = File::open(&dir) {
-                let _ = d.sync_all();
-            }
+            install(file, done, &real, &dir).map_err(werr)?;
             Ok(value)
         }
         Target::Through(path) => {

@@ -56,17 +56,12 @@ pub fn update<R: Read, W: Write>(
     totals: Totals,
 ) -> io::Result<usize> {
     const BLOCK: usize = 1 << 20;
-    let total_added: f64 = added.iter().map(|a| a.seconds).sum();
     let finder = memchr::memmem::Finder::new(b"M73");
     let mut chunk: Vec<u8> = Vec::with_capacity(BLOCK);
     // Offset in the input of chunk[0].
     let mut base = 0u64;
-    let mut next = 0usize;
-    let mut before = 0.0;
     let mut changed = 0usize;
-    // Totals from the first progress line when the footer gave none.
-    let mut totals = totals;
-    let mut last = [0.0; 2];
+    let mut lines = Lines::new(added, totals);
     loop {
         let n = input.by_ref().take(BLOCK as u64).read_to_end(&mut chunk)?;
         let eof = n == 0;
@@ -84,16 +79,9 @@ pub fn update<R: Read, W: Write>(
             if at > 0 && chunk[at - 1] != b'\n' {
                 continue;
             }
-            let line_end = memchr::memchr(b'\n', &chunk[at..end]).map_or(end, |i| at + i + 1);
-            let offset = base + at as u64;
-            while next < added.len() && added[next].offset <= offset {
-                before += added[next].seconds;
-                next += 1;
-            }
+            let line_end = line_end(&chunk[..end], at);
             let raw = &chunk[at..line_end];
-            if let Some(line) = progress_line(raw, before, total_added, &mut totals, &mut last)
-                .filter(|l| l[..] != *raw)
-            {
+            if let Some(line) = lines.next(base + at as u64, raw) {
                 changed += 1;
                 output.write_all(&chunk[copied..at])?;
                 output.write_all(&line)?;
@@ -106,6 +94,53 @@ pub fn update<R: Read, W: Write>(
         if eof {
             return Ok(changed);
         }
+    }
+}
+
+/// End (past its `\n`, or the end of `text`) of the line that starts at `at`.
+pub(crate) fn line_end(text: &[u8], at: usize) -> usize {
+    memchr::memchr(b'\n', &text[at..]).map_or(text.len(), |i| at + i + 1)
+}
+
+/// The new progress lines of a text, line by line in order: what [`update`] writes, for a
+/// caller that finds the lines itself ([`crate::assemble`]).
+pub struct Lines<'a> {
+    added: &'a [Added],
+    total_added: f64,
+    next: usize,
+    before: f64,
+    // Totals from the first progress line when the footer gave none.
+    totals: Totals,
+    last: [f64; 2],
+}
+
+impl<'a> Lines<'a> {
+    pub fn new(added: &'a [Added], totals: Totals) -> Lines<'a> {
+        Lines {
+            added,
+            total_added: added.iter().map(|a| a.seconds).sum(),
+            next: 0,
+            before: 0.0,
+            totals,
+            last: [0.0; 2],
+        }
+    }
+
+    /// The line that replaces `raw` (a line starting with `M73`, its terminator included, at
+    /// `offset` of the text, offsets increasing call by call); `None` when it stays.
+    pub fn next(&mut self, offset: u64, raw: &[u8]) -> Option<Vec<u8>> {
+        while self.next < self.added.len() && self.added[self.next].offset <= offset {
+            self.before += self.added[self.next].seconds;
+            self.next += 1;
+        }
+        progress_line(
+            raw,
+            self.before,
+            self.total_added,
+            &mut self.totals,
+            &mut self.last,
+        )
+        .filter(|l| l[..] != *raw)
     }
 }
 

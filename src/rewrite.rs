@@ -9,7 +9,10 @@
 //! this file ([`crate::settings`]) -> region detection, Print-on-Air pass and splice
 //! ([`crate::emit::process`], which copies every other line byte for byte and updates the
 //! footer) -> finish (the `M73` progress lines get the added time; binary G-code is encoded
-//! again block by block) -> atomic write ([`crate::output`]). A file poa rewrote before is
+//! again block by block) -> atomic write ([`crate::output`]). A text file rewritten into a
+//! regular file is written once, assembled from the input's stretches and the made text
+//! ([`crate::assemble`]); the other cases stream into a temporary file and fix the progress
+//! lines in a second pass. A file poa rewrote before is
 //! left alone (`Ok(None)`). [`convert_file`] (`poa convert`, text <-> binary G-code) streams
 //! the file through [`crate::bgcode::stream`] into the atomic write, in bounded memory.
 
@@ -19,7 +22,7 @@ use std::path::Path;
 use crate::emit::{self, ObjectFilter, ProcessOptions, ProcessReport};
 use crate::error::{Error, Result};
 use crate::layers::SlicerConfig;
-use crate::{bgcode, input, output, progress, settings};
+use crate::{assemble, bgcode, input, output, progress, settings};
 
 /// What the user asked of a rewrite, before the file's own settings are known.
 #[derive(Debug, Clone, Default)]
@@ -76,8 +79,6 @@ pub type Wrap<'a> = &'a (dyn Fn(Box<dyn BufRead + Send>, u64) -> Box<dyn BufRead
 
 /// Rewrites `file` into `dest` (which may be `file` itself, for slicer mode; `None` is a dry
 /// run). Returns `None` when the file was already rewritten by poa and is left as it is.
-///
-/// Long by design: the whole rewrite of one file in pipeline order (open, passes, finish, binary re-encoding, atomic write) so that every error path is visible next to the write it guards.
 pub fn rewrite_file(
     file: &Path,
     dest: Option<&Path>,
@@ -85,7 +86,24 @@ pub fn rewrite_file(
     req: &Request,
     wrap: Wrap<'_>,
 ) -> Result<Option<ProcessReport>> {
+    rewrite_file_with(file, dest, inputs, req, wrap, true)
+}
+
+/// [`rewrite_file`]; `assembled`: a text file into a regular file is written once, assembled
+/// from the input's stretches and the rewrite's made text ([`crate::assemble`]), rather than
+/// streamed into a temporary file and copied again for its progress lines.
+///
+/// Long by design: the whole rewrite of one file in pipeline order (open, passes, finish, binary re-encoding, atomic write) so that every error path is visible next to the write it guards.
+fn rewrite_file_with(
+    file: &Path,
+    dest: Option<&Path>,
+    inputs: &[&Path],
+    req: &Request,
+    wrap: Wrap<'_>,
+    assembled: bool,
+) -> Result<Option<ProcessReport>> {
     let opened = input::open(file)?;
+    let input_file = opened.file;
     if emit::already_processed(&opened.head) {
         return Ok(None);
     }
@@ -118,9 +136,8 @@ pub fn rewrite_file(
     let config = opened.config;
     let texture_config = req.texture.as_ref().map(|_| config.clone());
     // The rewrite itself, into the first temporary file.
-    let first_pass = |mut w: &mut (dyn std::io::Write + Send), dest: &Path| {
-        let report =
-            emit::process(reader, config, &opts, &mut w).map_err(|e| stream_err(e, dest))?;
+    let first_pass = |w: &mut (dyn emit::Sink + Send), dest: &Path| {
+        let report = emit::process(reader, config, &opts, w).map_err(|e| stream_err(e, dest))?;
         filter_err(&report)?;
         Ok(report)
     };
@@ -137,7 +154,7 @@ pub fn rewrite_file(
             (|| -> Result<ProcessReport> {
                 let sink = dest.unwrap_or(file);
                 let mut text = Vec::new();
-                let mut report = first_pass(&mut text, sink)?;
+                let mut report = first_pass(&mut emit::Plain(&mut text), sink)?;
                 if req.updates_progress(&report) {
                     let mut fixed = Vec::with_capacity(text.len());
                     progress::update(&text[..], &mut fixed, &report.progress, totals).map_err(
@@ -177,7 +194,7 @@ pub fn rewrite_file(
                 inputs,
                 // Binary G-code: the rewritten text goes to a first temporary file, then into G-code
                 // blocks after the metadata, which states the new totals.
-                |w| first_pass(w, dest),
+                |w| first_pass(&mut emit::Plain(w), dest),
                 |_| true,
                 |report, written, w| {
                     emit::update_binary_metadata(&mut layout.other, report);
@@ -197,10 +214,39 @@ pub fn rewrite_file(
                     Ok(())
                 },
             ),
+            (Some(dest), None) if assembled && output::replaces_file(dest, inputs)? => {
+                let Some(input_file) = input_file else {
+                    return rewrite_file_with(file, Some(dest), inputs, req, wrap, false);
+                };
+                let mut recorder = assemble::Recorder::new();
+                match first_pass(&mut recorder, dest) {
+                    // More pieces and progress lines than the recorder lists: streamed.
+                    Ok(_) if recorder.overflowed() => {
+                        return rewrite_file_with(file, Some(dest), inputs, req, wrap, false)
+                    }
+                    Ok(report) => output::write_atomic_at(dest, inputs, |out| {
+                        let progress = req
+                            .updates_progress(&report)
+                            .then_some((&report.progress[..], totals));
+                        recorder
+                            .write(&input_file, out, progress)
+                            .map_err(|f| match f {
+                                assemble::Failure::Read(e) => read_err(e),
+                                assemble::Failure::Write(source) => Error::Write {
+                                    path: dest.to_path_buf(),
+                                    source,
+                                },
+                            })
+                    })
+                    .map(|_| report),
+                    // (A file rewritten before comes out of the match below as `None`.)
+                    Err(e) => Err(e),
+                }
+            }
             (Some(dest), None) => output::write_atomic_twice(
                 dest,
                 inputs,
-                |w| first_pass(w, dest),
+                |w| first_pass(&mut emit::Plain(w), dest),
                 |report| req.updates_progress(report),
                 // The progress lines precede the layers that added time: a second pass over the
                 // written text gives them the new times.
@@ -213,7 +259,7 @@ pub fn rewrite_file(
                         })
                 },
             ),
-            (None, _) => first_pass(&mut std::io::sink(), file),
+            (None, _) => first_pass(&mut emit::Plain(std::io::sink()), file),
         }
     };
     match result {
@@ -325,7 +371,13 @@ pub fn ab_plate(
         silent: totals.silent.map(|t| t + plate.added_time_s * scale),
     };
     let mut result = Vec::new();
-    let report = emit::process(&text[..], opened.config, &opts, &mut result).map_err(read_err)?;
+    let report = emit::process(
+        &text[..],
+        opened.config,
+        &opts,
+        &mut emit::Plain(&mut result),
+    )
+    .map_err(read_err)?;
     if req.updates_progress(&report) {
         let mut fixed = Vec::with_capacity(result.len());
         progress::update(&result[..], &mut fixed, &report.progress, totals).map_err(read_err)?;

@@ -353,3 +353,79 @@ fn a_file_written_without_blanks_is_rewritten_as_the_same_file_with_them() {
     };
     assert_eq!(block(&out_p), block(&out_s), "the loops differ");
 }
+
+/// What `poa process` made of `file` before the output was assembled: the rewrite streamed
+/// into memory, then its progress lines updated over the whole text.
+fn streamed(file: &std::path::Path) -> Vec<u8> {
+    use printonair::rewrite::Request;
+    use printonair::{input, progress};
+    let opened = input::open(file).unwrap();
+    let req = Request::default();
+    let opts = req.options(&opened.config).unwrap();
+    let totals = progress::Totals::of(&opened.config);
+    let mut text = Vec::new();
+    let rep = emit::process(
+        opened.reader,
+        opened.config,
+        &opts,
+        &mut emit::Plain(&mut text),
+    )
+    .unwrap();
+    if rep.has_progress_lines && !rep.progress.is_empty() {
+        let mut fixed = Vec::new();
+        progress::update(&text[..], &mut fixed, &rep.progress, totals).unwrap();
+        text = fixed;
+    }
+    text
+}
+
+fn written(file: &std::path::Path, dir: &std::path::Path) -> Vec<u8> {
+    let out = dir.join("out.gcode");
+    let req = printonair::rewrite::Request::default();
+    printonair::rewrite::rewrite_file(file, Some(&out), &[file], &req, &|r, _| r)
+        .unwrap()
+        .expect("not rewritten before");
+    std::fs::read(&out).unwrap()
+}
+
+/// A rewrite into a regular file is assembled from the input's stretches and the made text
+/// and written once (`printonair::assemble`): byte for byte what streaming it and updating
+/// its progress lines afterwards makes, on every sample (progress lines that change and
+/// change length, CRLF, no comments, several objects).
+#[test]
+fn a_rewrite_written_once_is_the_streamed_rewrite_byte_for_byte() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut with_progress = 0;
+    for s in samples() {
+        let got = written(&s, dir.path());
+        let expect = streamed(&s);
+        assert!(got == expect, "{}: outputs differ", s.display());
+        if got != read(&s) && memchr::memmem::find(&got, b"\nM73 P").is_some() {
+            with_progress += 1;
+        }
+    }
+    assert!(
+        with_progress >= 3,
+        "samples with progress lines: {with_progress}"
+    );
+}
+
+/// A file with more progress lines than the assembler lists is written the streaming way,
+/// with the same result.
+#[test]
+fn a_file_of_countless_progress_lines_is_streamed_instead() {
+    let original = read(&sample("rect_overhang_prusa_rel.gcode"));
+    let at = memchr::memmem::find(&original, b"\nM73 P").expect("progress lines") + 1;
+    let mut data = original[..at].to_vec();
+    for _ in 0..printonair::assemble::MAX_ENTRIES + 10 {
+        data.extend_from_slice(b"M73 P0 R9\n");
+    }
+    data.extend_from_slice(&original[at..]);
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("many.gcode");
+    std::fs::write(&file, &data).unwrap();
+    let got = written(&file, dir.path());
+    assert!(got == streamed(&file), "outputs differ");
+    // The added time reached the lines.
+    assert!(memchr::memmem::find(&got, b"\nM73 P0 R10\n").is_some());
+}

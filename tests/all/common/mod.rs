@@ -41,7 +41,7 @@ pub fn rewrite(
         header: format!("{} test", emit::HEADER_MARK),
     };
     let mut out = Vec::new();
-    let rep = emit::process(data, config, &opts, &mut out).unwrap();
+    let rep = emit::process(data, config, &opts, &mut printonair::emit::Plain(&mut out)).unwrap();
     (out, rep)
 }
 
