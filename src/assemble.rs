@@ -18,7 +18,8 @@
 //!
 //! Memory: the lists of pieces and progress lines, at most [`MAX_ENTRIES`] entries in all
 //! (past that, [`Recorder::overflowed`] says so and the caller writes the file the streaming
-//! way), and [`MADE_IN_MEMORY`] bytes of made text; more goes to an unnamed temporary file.
+//! way), and [`MADE_IN_MEMORY`] bytes of made text; more goes to an unnamed temporary file
+//! (where none can be made, the recorder says it overflowed too).
 //! The input file must not change while it is rewritten (a file cut shorter is a read error).
 
 use std::fs::File;
@@ -71,8 +72,9 @@ impl Recorder {
         Recorder::default()
     }
 
-    /// Whether the output had more pieces and progress lines than [`MAX_ENTRIES`]: nothing is
-    /// recorded then, and the output must be made another way.
+    /// Whether the output had more pieces and progress lines than [`MAX_ENTRIES`], or made
+    /// text past [`MADE_IN_MEMORY`] and no temporary file to put it in: nothing is recorded
+    /// then, and the output must be made another way.
     pub fn overflowed(&self) -> bool {
         self.overflow
     }
@@ -122,18 +124,22 @@ impl Sink for Recorder {
             }
             None => {
                 if self.spill.is_none() {
-                    self.spill = Some(tempfile::tempfile()?);
+                    self.spill = tempfile::tempfile().ok();
                 }
-                if let Some(f) = &mut self.spill {
-                    f.write_all(bytes)?;
-                }
+                // No temporary file to be had (a read-only or missing TMPDIR): the caller
+                // streams instead, as past the entries.
+                let spilled = match &mut self.spill {
+                    Some(f) => f.write_all(bytes).is_ok(),
+                    None => false,
+                };
                 let at = self.spilled;
                 self.spilled += len;
                 self.push(Source::Spill, at, len);
+                self.overflow |= !spilled;
             }
         }
         self.len += len;
-        if self.pieces.len() + self.lines.len() > MAX_ENTRIES {
+        if self.overflow || self.pieces.len() + self.lines.len() > MAX_ENTRIES {
             self.overflow = true;
             self.pieces = Vec::new();
             self.lines = Vec::new();

@@ -17,8 +17,8 @@
 //! overhang per layer); a ring of a sphere's underside or of a 60 degree arm is a region.
 
 use geo::{
-    coord, Area, BooleanOps, BoundingRect, Contains, Line, LineString, MultiLineString,
-    MultiPolygon, Point, Polygon, Rect,
+    coord, Area, BooleanOps, BoundingRect, Contains, Line, LineString, MultiPolygon, Point,
+    Polygon, Rect,
 };
 use rstar::RTree;
 use serde::Serialize;
@@ -677,7 +677,9 @@ fn extrusions_inside(
     let Some(bb) = polygon.bounding_rect() else {
         return (Vec::new(), None);
     };
-    let region = MultiPolygon::new(vec![polygon.clone()]);
+    // One index of the region's boundary for all the strands near it: clipping each strand
+    // by the polygon set up an overlay per strand (4 % of a plate's rewrite).
+    let region = super::RingIndex::new(&MultiPolygon::new(vec![polygon.clone()]));
     let mut by_role: Vec<(Role, f64, f64)> = Vec::new();
     let mut by_object: Vec<(Option<u32>, f64)> = Vec::new();
     for (p, pb) in layer.paths.iter().zip(boxes) {
@@ -690,13 +692,10 @@ fn extrusions_inside(
         if !meets || p.points.len() < 2 {
             continue;
         }
-        let line = LineString::from(p.points.iter().map(|q| (q[0], q[1])).collect::<Vec<_>>());
-        let inside = region.clip(&MultiLineString::new(vec![line]), false);
-        let len: f64 = inside
-            .0
+        let len: f64 = region
+            .inside_intervals(&p.points)
             .iter()
-            .flat_map(|l| l.0.windows(2))
-            .map(|w| ((w[1].x - w[0].x).powi(2) + (w[1].y - w[0].y).powi(2)).sqrt())
+            .map(|(a, b)| b - a)
             .sum();
         if len <= 1e-9 {
             continue;
