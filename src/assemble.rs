@@ -28,8 +28,10 @@ use std::io::{self, Write};
 use crate::emit::Sink;
 use crate::progress::{self, Added, Totals};
 
-/// Pieces and progress lines a [`Recorder`] lists at most (16 bytes each).
-pub const MAX_ENTRIES: usize = 1 << 20;
+/// Pieces and progress lines a [`Recorder`] lists at most (24 and 16 bytes each, and 40 for
+/// each operation of the write): a file needs more only with over a hundred thousand layers
+/// rewritten, or a progress line every few bytes (100 hours of print make 12 000).
+pub const MAX_ENTRIES: usize = 1 << 18;
 /// Made text kept in memory; the rest goes to a temporary file.
 pub const MADE_IN_MEMORY: usize = 16 << 20;
 /// Bytes a writer thread hands the kernel before asking it to start writing them back.
@@ -534,7 +536,10 @@ mod tests {
         }
         let mut made = Vec::new();
         while made.len() < MADE_IN_MEMORY + (1 << 20) {
-            made.extend_from_slice(b"G1 X9 Y9 E0.5 ; poa\nM73 P2 R99\n");
+            for _ in 0..40 {
+                made.extend_from_slice(b"G1 X9 Y9 E0.5 ; poa\n");
+            }
+            made.extend_from_slice(b"M73 P2 R99\n");
         }
         let half = (input.len() / 2 / 36 * 36) as u64;
         let blocks: [(&[u8], Option<u64>); 4] = [
