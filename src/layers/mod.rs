@@ -430,6 +430,10 @@ struct Builder {
     raw: Vec<u8>,
     paths: Vec<Path>,
     start: Option<Box<Machine>>,
+    /// XY length (mm) of the block's moves that push filament, and of those outside a tagged
+    /// wipe that pull it back.
+    e_forward: f64,
+    e_back: f64,
 }
 
 impl Builder {
@@ -446,6 +450,8 @@ impl Builder {
             raw: Vec::new(),
             paths: Vec::new(),
             start: None,
+            e_forward: 0.0,
+            e_back: 0.0,
         }
     }
 }
@@ -513,6 +519,12 @@ struct State {
     /// Whether anything was extruded yet, and the line of a G20 that came after.
     printed: bool,
     inches_mid_print: Option<u64>,
+    /// Inside a wipe the slicer tagged (`;WIPE_START` .. `;WIPE_END`), and whether one was.
+    in_wipe: bool,
+    wipes_tagged: bool,
+    /// The first line of a layer, after printing began, whose moves pull filament back
+    /// outside wipes ([`E_BACK_SHARE`]), and the share.
+    e_backwards: Option<(u64, f64)>,
     ready: VecDeque<Layer>,
     next_index: usize,
     prev_layer_z: f64,
@@ -636,6 +648,15 @@ impl<R: BufRead> LayerReader<R> {
                 ),
             ));
         }
+        if let Some((line, share)) = self.st.e_backwards {
+            return Err(io::Error::new(
+                io::ErrorKind::InvalidData,
+                format!(
+                    "line {line}: this layer's printing moves pull filament back on {:.0} % of their length: its E values do not fit the E mode in force (an M82 or M83 added or lost mid-print); the file is damaged: slice it again",
+                    100.0 * share
+                ),
+            ));
+        }
         if let Some(line) = self.st.too_many_moves {
             return Err(io::Error::new(
                 io::ErrorKind::InvalidData,
@@ -647,6 +668,17 @@ impl<R: BufRead> LayerReader<R> {
         Ok(true)
     }
 }
+
+/// Share of a layer's moves with E (by XY length) that may pull filament back outside the
+/// wipes a slicer tags. PrusaSlicer and SuperSlicer pull back while moving only in tagged
+/// wipes (judged once a wipe was tagged), Cura never: 0 % in 626 held-out files by both. A relative-E file read as absolute
+/// (an M82 slipped in mid-print) pulls back on 40-65 % of each layer's moves, and its layers,
+/// printed in fragments, left every layer above full of false regions (9 mushrooms: 1 738
+/// regions, 22 s and 188 MB). Judged only for those slicers: others wipe untagged, and a
+/// plate of pins wiped after each 2.5 mm loop pulls back on more than half its moves.
+const E_BACK_SHARE: f64 = 0.2;
+/// Fewest mm of moves with E a layer is judged on.
+const E_BACK_MIN_MM: f64 = 50.0;
 
 /// Most moves (arcs counted by the chords they are read as) one layer may hold: some 400
 /// times a busy layer of a real plate (a 16-part plate averages 4 500), and what keeps a
@@ -723,6 +755,9 @@ impl State {
             too_many_moves: None,
             printed: false,
             inches_mid_print: None,
+            in_wipe: false,
+            wipes_tagged: false,
+            e_backwards: None,
             ready: VecDeque::new(),
             next_index: 0,
             prev_layer_z: 0.0,
@@ -784,6 +819,15 @@ impl State {
         let action = self.machine.step(&parsed, number);
         if let Some(e) = &mut self.estimator {
             e.line(&parsed, &action);
+        }
+        if let Action::Move(m) = &action {
+            if m.e != 0.0 && m.from != m.to {
+                if m.e > 0.0 {
+                    self.cur.e_forward += m.xy_length();
+                } else if !self.in_wipe {
+                    self.cur.e_back += m.xy_length();
+                }
+            }
         }
         match action {
             Action::Move(m) => self.handle_move(&m, number),
@@ -888,7 +932,12 @@ impl State {
             Tag::ObjectStart(name) => self.start_object(name.clone(), name),
             Tag::ObjectEnd => self.set_object(None),
             Tag::ConfigBegin => self.in_config = true,
-            Tag::ConfigEnd | Tag::WipeStart | Tag::WipeEnd => {}
+            Tag::WipeStart => {
+                self.in_wipe = true;
+                self.wipes_tagged = true;
+            }
+            Tag::WipeEnd => self.in_wipe = false,
+            Tag::ConfigEnd => {}
         }
     }
 
@@ -1304,6 +1353,21 @@ impl State {
 
     fn complete(&mut self, b: Builder) -> Layer {
         let is_layer = b.kind == LayerKind::Layer;
+        let moved = b.e_forward + b.e_back;
+        if is_layer
+            && self.printed
+            && self.e_backwards.is_none()
+            && match self.facts.slicer {
+                // (Versions that wiped without tags are not judged: a wipe was tagged.)
+                Slicer::PrusaSlicer | Slicer::SuperSlicer => self.wipes_tagged,
+                Slicer::Cura => true,
+                _ => false,
+            }
+            && moved >= E_BACK_MIN_MM
+            && b.e_back > E_BACK_SHARE * moved
+        {
+            self.e_backwards = Some((b.first_line, b.e_back / moved));
+        }
         let z = b
             .z_tag
             .or(b.extrusion_z)

@@ -322,6 +322,56 @@ fn an_interrupted_run_removes_its_temporary_file() {
     }
 }
 
+/// An M82 slipped into a relative-E file mid-print makes every later E a position: the layers
+/// after it print in fragments, every layer above them was full of false regions (9 mushrooms:
+/// 1 738 regions, 22 s and 188 MB). Refused at once, naming the first such layer; the sample
+/// as sliced goes through.
+#[test]
+fn an_e_mode_switch_that_does_not_fit_the_e_values_is_refused() {
+    let (damaged, _) = circ_with("M82");
+    let o = survive("M82 mid-print", damaged.as_bytes());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "{err}");
+    assert!(
+        err.contains("pull filament back") && err.contains("E mode"),
+        "{err}"
+    );
+    let line: u64 = err
+        .split("line ")
+        .nth(1)
+        .and_then(|t| t.split(':').next())
+        .and_then(|n| n.parse().ok())
+        .expect("a line number");
+    // The layer named is the one the M82 came in, or one after it.
+    let lines: Vec<&str> = damaged.lines().collect();
+    let at = lines.iter().position(|l| *l == "M82").unwrap();
+    let layer_start = lines[..at]
+        .iter()
+        .rposition(|l| l.starts_with(";LAYER_CHANGE"))
+        .unwrap() as u64
+        + 1;
+    assert!(
+        line >= layer_start,
+        "{line} before the layer of the M82 at {at}"
+    );
+    let o = survive("as sliced", &read(&sample("circ_overhang_prusa_rel.gcode")));
+    assert!(o.status.success());
+}
+
+/// PrusaSlicer pulls filament back while it wipes, and tags the wipes: a plate of pins, each
+/// loop 3.8 mm long and wiped after, pulls back on about half of each layer's moves with E,
+/// none of them outside a tagged wipe. Not refused.
+#[test]
+fn a_plate_of_wiped_pins_is_no_e_mode_damage() {
+    let Some(g) = slice("pins", &["--wipe"]) else {
+        note("PrusaSlicer not installed: skipped");
+        return;
+    };
+    assert!(memchr::memmem::find(&g, b";WIPE_START").is_some());
+    let o = survive("pins", &g);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
 /// G20 after printing began (a damaged file) would print the rest 25.4 times larger: refused
 /// in one line naming the line (it took 20-400 s of planning loops over parts a metre
 /// wide); a file in inches from its start is read as such.
