@@ -81,15 +81,6 @@ impl Recorder {
         self.overflow
     }
 
-    /// The output's length.
-    pub fn len(&self) -> u64 {
-        self.len
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.len == 0
-    }
-
     fn push(&mut self, source: Source, at: u64, len: u64) {
         match self.pieces.last_mut() {
             Some(p) if p.source == source && p.at + p.len == at => p.len += len,
