@@ -2877,6 +2877,8 @@ impl PoaPass<'_> {
             sliced().as_ref()
         });
         self.report.skipped.extend(held);
+        let (rewrites, repeated) = drop_repeated(layer.index + 1, rewrites);
+        self.report.skipped.extend(repeated);
         let rewrites: Vec<RegionRewrite> = rewrites
             .into_iter()
             .map(|r| {
@@ -3447,6 +3449,70 @@ fn drop_held<'c>(
             });
         } else {
             kept.push(r);
+        }
+    }
+    (kept, skipped)
+}
+
+/// Share of a rewrite's zone that the zones of the layer's rewrites before it may cover before
+/// it is dropped as a repeat of them ([`drop_repeated`]).
+const REPEATED_SHARE: f64 = 0.5;
+
+/// Leaves out the rewrites whose zone lies mostly within the zones of the rewrites before them
+/// on the layer: those take the slicer's strands out there and fill it already, and a second
+/// plan over the same area prints it twice over (a shelf's bridge cut into strips along the
+/// slits between its strands, each strip planning the whole zone: 20 plans over one area).
+/// They go to the report, named by the rewrite that covers them.
+fn drop_repeated(
+    layer_number: usize,
+    rewrites: Vec<RegionRewrite>,
+) -> (Vec<RegionRewrite>, Vec<SkippedRegion>) {
+    use geo::{Area, BoundingRect, Intersects};
+    if rewrites.len() < 2 {
+        return (rewrites, Vec::new());
+    }
+    let mut kept: Vec<RegionRewrite> = Vec::with_capacity(rewrites.len());
+    let mut skipped = Vec::new();
+    for r in rewrites {
+        let area = r.plan.zone.unsigned_area();
+        let bounds = r.plan.zone.bounding_rect();
+        let by = bounds.and_then(|b| {
+            let near: Vec<&RegionRewrite> = kept
+                .iter()
+                .filter(|k| {
+                    k.plan
+                        .zone
+                        .bounding_rect()
+                        .is_some_and(|kb| kb.intersects(&b))
+                })
+                .collect();
+            if near.is_empty() || area <= 0.0 {
+                return None;
+            }
+            let zones: Vec<&MultiPolygon<f64>> = near.iter().map(|k| &k.plan.zone).collect();
+            let covered =
+                crate::geometry::intersection(&r.plan.zone, &crate::geometry::union_all(&zones))
+                    .unsigned_area();
+            (covered > REPEATED_SHARE * area).then(|| {
+                near.iter()
+                    .max_by(|a, b| {
+                        let over = |k: &RegionRewrite| {
+                            crate::geometry::intersection(&r.plan.zone, &k.plan.zone)
+                                .unsigned_area()
+                        };
+                        over(a).total_cmp(&over(b))
+                    })
+                    .map_or(0, |k| k.id)
+            })
+        });
+        match by {
+            Some(id) => skipped.push(SkippedRegion {
+                region: r.id,
+                layer: layer_number,
+                kind: r.kind,
+                reason: format!("its zone is planned with region {id}"),
+            }),
+            None => kept.push(r),
         }
     }
     (kept, skipped)
@@ -4159,6 +4225,50 @@ mod tests {
         assert!((merged[0].longest_inner_travel_mm - 2.0).abs() < 1e-9);
         assert_eq!(merged[0].inserted_before_line, 200);
         assert!((merged[1].written_length_mm - 5.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn a_rewrite_whose_zone_others_on_the_layer_fill_already_is_dropped() {
+        use crate::geometry::testutil::{mp, rect};
+        let rewrite = |id: usize, zone: MultiPolygon<f64>| RegionRewrite {
+            id,
+            kind: RegionKind::Bridge,
+            plan: Plan {
+                zone,
+                strands: vec![loop_strand(1, vec![[0.0, 0.0], [1.0, 0.0]])],
+                loops: 1,
+                with_perimeter: false,
+                ladder: false,
+            },
+            height: 0.3,
+            no_connect: MultiPolygon::new(Vec::new()),
+        };
+        // A shelf's zone planned whole by region 30, a strip of it planned again by 39, and
+        // a region beside the shelf (overlapping it by a fifth) and one far off.
+        let v = vec![
+            rewrite(30, mp(vec![rect(0.0, 0.0, 10.0, 15.0)])),
+            rewrite(39, mp(vec![rect(2.0, 0.0, 3.0, 15.0)])),
+            rewrite(40, mp(vec![rect(9.0, 0.0, 14.0, 15.0)])),
+            rewrite(41, mp(vec![rect(50.0, 0.0, 51.0, 5.0)])),
+        ];
+        let (kept, skipped) = drop_repeated(68, v);
+        let ids: Vec<usize> = kept.iter().map(|r| r.id).collect();
+        assert_eq!(ids, [30, 40, 41]);
+        assert_eq!(skipped.len(), 1);
+        assert_eq!((skipped[0].region, skipped[0].layer), (39, 68));
+        assert!(
+            skipped[0].reason.contains("region 30"),
+            "{}",
+            skipped[0].reason
+        );
+        // Covered by two before it together (each a third): dropped too.
+        let v = vec![
+            rewrite(1, mp(vec![rect(0.0, 0.0, 4.0, 4.0)])),
+            rewrite(2, mp(vec![rect(6.0, 0.0, 10.0, 4.0)])),
+            rewrite(3, mp(vec![rect(2.0, 0.0, 8.0, 4.0)])),
+        ];
+        let (kept, _) = drop_repeated(1, v);
+        assert_eq!(kept.len(), 2);
     }
 
     #[test]
