@@ -681,6 +681,43 @@ fn strips_of_a_bridge_a_slit_apart_are_planned_once() {
     );
 }
 
+/// An inverted pyramid flaring at 55 degrees, sliced hollow at PrusaSlicer's 0.3 mm defaults:
+/// each layer of the flare is a ring of two perimeters, its outer side a gradual overhang,
+/// its inner side over the ring below. The moved perimeter's area came out of two booleans
+/// a sliver apart along that inner side, and the sliver's two edges were laid as strands
+/// 0.015 mm apart on every side of every layer (2.9 times the length taken out, +16 % time).
+/// A gradual overhang's strands now come to little more than what they replace.
+#[test]
+fn a_hollow_flare_s_rings_are_not_laid_twice() {
+    let Some(d) = slice_defaults("inv_pyramid", &HOLLOW_ROOFED) else {
+        return;
+    };
+    let (new, rep) = rewrite(&d, BridgeMode::Auto);
+    let gradual: Vec<_> = rep.rewrites.iter().filter(|r| r.gradual).collect();
+    assert!(gradual.len() >= 10, "{} gradual rewrites", gradual.len());
+    // The perimeter alone comes to the slicer's perimeter it replaces, its ends and hops
+    // aside; each loop under it adds about as much again.
+    for r in gradual {
+        let most = (1.6 + r.loops as f64) * r.removed_length_mm;
+        assert!(
+            r.written_length_mm <= most,
+            "layer {}: {:.0} mm written ({} loops) for {:.0} mm taken out",
+            r.layer,
+            r.written_length_mm,
+            r.loops,
+            r.removed_length_mm
+        );
+    }
+    let (before, after) = (check(&d), check(&new));
+    assert!(
+        after.in_air_mm < 0.01 * before.in_air_mm,
+        "{:.1} -> {:.1} mm in air",
+        before.in_air_mm,
+        after.in_air_mm
+    );
+    no_layer_worse("hollow inverted pyramid", &before, &after);
+}
+
 /// Spiral vase prints (Cura's `magic_spiralize`, PrusaSlicer's `--spiral-vase`): a turn of
 /// the helix has no one height, and a sphere's top turns were rewritten at a fixed Z (an elbow
 /// by Cura in vase mode: one turn 0 -> 59 mm in air). Nothing of a helical layer is rewritten.
