@@ -3495,14 +3495,12 @@ fn drop_repeated(
                     .unsigned_area();
             (covered > REPEATED_SHARE * area).then(|| {
                 near.iter()
-                    .max_by(|a, b| {
-                        let over = |k: &RegionRewrite| {
-                            crate::geometry::intersection(&r.plan.zone, &k.plan.zone)
-                                .unsigned_area()
-                        };
-                        over(a).total_cmp(&over(b))
+                    .map(|k| {
+                        let over = crate::geometry::intersection(&r.plan.zone, &k.plan.zone);
+                        (over.unsigned_area(), k.id)
                     })
-                    .map_or(0, |k| k.id)
+                    .max_by(|a, b| a.0.total_cmp(&b.0))
+                    .map_or(0, |(_, id)| id)
             })
         });
         match by {

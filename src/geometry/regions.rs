@@ -373,10 +373,6 @@ pub(super) fn boxes_meet(a: &Rect<f64>, b: &Rect<f64>) -> bool {
     super::boxes_within(Some(a), Some(b), 0.0)
 }
 
-/// `here - (below grown by tol)`, part by part: each polygon of `here` (they are disjoint)
-/// minus the growth of the polygons of `below` whose boxes come within `tol` of its box (no
-/// other's growth reaches it). On a plate the booleans stay the size of one part, the parts
-/// run on all cores, and what no part comes near is never grown.
 /// `raw` with its pieces that lie less than `2 r` apart joined into one (a closing by `r`):
 /// the slits between a slicer's bridge strands (PrusaSlicer's thick bridges at 0.3 mm layers
 /// lie 0.05 mm apart) are no gaps, beads squash into them, as the planner takes them. Cut
@@ -423,6 +419,10 @@ fn joined_across_slits(raw: MultiPolygon<f64>, r: f64) -> MultiPolygon<f64> {
     MultiPolygon::new(out)
 }
 
+/// `here - (below grown by tol)`, part by part: each polygon of `here` (they are disjoint)
+/// minus the growth of the polygons of `below` whose boxes come within `tol` of its box (no
+/// other's growth reaches it). On a plate the booleans stay the size of one part, the parts
+/// run on all cores, and what no part comes near is never grown.
 fn uncovered(here: &MultiPolygon<f64>, below: &MultiPolygon<f64>, tol: f64) -> MultiPolygon<f64> {
     use rayon::prelude::*;
     let index = super::BoxIndex::new(below);
