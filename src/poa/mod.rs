@@ -321,6 +321,36 @@ fn without_specks(area: MultiPolygon<f64>, w: f64) -> MultiPolygon<f64> {
     )
 }
 
+/// `area` with its notches by the layer below's edge filled: the gaps narrower than one and
+/// a half widths that lie mostly within a width of what the layer below printed. A hollow
+/// part's roof at 0.25 mm layers (PrusaSlicer) is bridge lines at 45 degrees to the wall,
+/// turning in pairs 0.3 mm clear of its inner perimeter: V notches 0.4 mm deep line the wall
+/// below's edge, loops 1 and 2 lay in them and found no room, and the first loop laid hung
+/// 0.58 mm past the wall (95.8 mm in air on the roof's first layer). Filled, the notches are
+/// printed by the first loops, from the wall. Gaps away from the layer below (a slot across
+/// a hole's ceiling, a clearance between two parts over air) stay open.
+fn notches_filled(area: MultiPolygon<f64>, below: &MultiPolygon<f64>, w: f64) -> MultiPolygon<f64> {
+    let added = difference(&closing(&area, 0.75 * w), &area);
+    if added.0.is_empty() {
+        return area;
+    }
+    let near = offset(below, w);
+    let kept: Vec<geo::Polygon<f64>> = added
+        .0
+        .into_iter()
+        .filter(|p| {
+            let a = p.unsigned_area();
+            a > 0.0
+                && intersection(&MultiPolygon::new(vec![p.clone()]), &near).unsigned_area()
+                    >= 0.5 * a
+        })
+        .collect();
+    if kept.is_empty() {
+        return area;
+    }
+    union(&area, &MultiPolygon::new(kept))
+}
+
 /// [`plan`] from the [`windows`] made for `region` already.
 pub(super) fn plan_in(
     region: &Region,
@@ -341,6 +371,7 @@ pub(super) fn plan_in(
     // into them): closed, so that an island of walls the slicer set 0.07 mm off the skin (a
     // slot's walls by Cura, outer wall first) is part of the outline the perimeter follows.
     let area_loc = without_specks(closing(area_cut, w / 4.0), w);
+    let area_loc = notches_filled(area_loc, below_loc, w);
 
     // The zone: what sectB prints beyond sectA around this region, slivers dropped.
     // Simplified by 2 um before the opening: the booleans leave thousands of points on a
@@ -416,8 +447,26 @@ pub(super) fn plan_in(
         // Where the perimeter is within an eighth of a width of biting like loop 1, it is
         // moved there: a marginal slope (60 degrees at 0.2 mm) then rests on the layer below
         // instead of hanging a tenth of a millimetre past it.
-        let biting = intersection(&perimeter_area, &front);
-        let limit = offset(&area_loc, -(we / 2.0 + inset + w / 8.0));
+        // Where the outline lies on the layer below's edge (a wall's side standing on a
+        // shelf's edge, the wall's inside hollow: the ring over air runs inward from the
+        // outline), the perimeter there rests where the slicer put it and loops lean on the
+        // layer below beside it: the outline is taken past that edge, so that no moved
+        // perimeter is laid there, between the layer below and the loops.
+        // (Closed by an eighth of a width: where the outline runs along the edge below, the
+        // two leave slits a micrometre wide, which the pull-in opened into notches.)
+        let ext = without_specks(
+            closing(
+                &union(&area_loc, &intersection(below_loc, &offset(&area_loc, we))),
+                w / 8.0,
+            ),
+            w,
+        );
+        let pulled = union(
+            &perimeter_area,
+            &offset(&offset(&ext, -(we / 2.0 + inset + round)), round),
+        );
+        let biting = intersection(&pulled, &front);
+        let limit = offset(&ext, -(we / 2.0 + inset + w / 8.0));
         // Where the two lie a sliver apart (the wall below on the ring's inner side, a hollow
         // part's void beyond it) they are one: the sliver's two edges were two strands
         // 0.015 mm apart along each side of a hollow inverted pyramid, on every layer.
@@ -497,6 +546,11 @@ pub(super) fn plan_in(
             if needed {
                 pieces = whole;
             }
+            // Pieces a ring's gaps of less than a width apart are one: the top infill of a
+            // shelf a hollow wall stands on turns in notches along its edge every 1.1 mm,
+            // the first ring bends round each and was cut there into pieces too short to
+            // lay, and the loops began a step out, in air (25.6 mm on the layer).
+            pieces = chained(&pieces, w);
             let shape = |width: f64| Shape {
                 kind: StrandKind::Loop,
                 loop_index: k,
@@ -3384,6 +3438,113 @@ mod tests {
                 for p in &s.points {
                     assert_eq!(p[0] < 11.0, left, "{:?} strand at {p:?}", s.kind);
                 }
+            }
+        }
+    }
+
+    /// V notches `depth` deep with a mouth `mouth` wide, every `pitch` mm along the line
+    /// x = `x` from y = 1 to 19, opening towards -x (`dir` -1) or +x (`dir` 1).
+    fn notches(x: f64, dir: f64, mouth: f64, depth: f64, pitch: f64) -> MultiPolygon<f64> {
+        let mut v = Vec::new();
+        let mut y = 1.0;
+        while y + mouth < 19.0 {
+            v.push(Polygon::new(
+                vec![
+                    (x - dir * 0.01, y),
+                    (x + dir * depth, y + mouth / 2.0),
+                    (x - dir * 0.01, y + mouth),
+                ]
+                .into(),
+                vec![],
+            ));
+            y += pitch;
+        }
+        MultiPolygon::new(v)
+    }
+
+    /// A hollow wall standing on a shelf's edge (two shelves with a hole, sliced hollow): the
+    /// wall's side over the shelf rests on it, the rest of the ring hangs over the wall's
+    /// hollow inside. Loops are laid from the shelf's edge inward, the perimeter facing the
+    /// hollow last; the moved perimeter along the shelf's edge (0.3 mm past it, in air, first)
+    /// is gone. The shelf's top layer ends in the notches its infill's turns leave (a ring
+    /// clipped at each was pieces too short to lay, and its loop was lost): the same.
+    #[test]
+    fn a_wall_standing_on_a_shelf_s_edge_is_held_from_the_shelf_inward() {
+        for notched in [false, true] {
+            let mut below = mp(vec![
+                rect(1.22, -5.0, 15.0, 25.0),
+                rect(-1.0, -2.0, 1.25, 1.0),
+                rect(-1.0, 19.0, 1.25, 22.0),
+            ]);
+            if notched {
+                below = difference(&below, &notches(1.22, 1.0, 0.4, 0.25, 1.13));
+            }
+            let area = mp(vec![rect(0.0, -2.0, 1.25, 22.0)]);
+            let zone = difference(&area, &below);
+            let biggest = zone
+                .0
+                .iter()
+                .max_by(|a, b| a.unsigned_area().total_cmp(&b.unsigned_area()))
+                .unwrap()
+                .clone();
+            let plan = plan_over(
+                biggest,
+                &below,
+                &area,
+                bead_widths(),
+                &PoaSettings::default(),
+            );
+            assert!(plan.loops >= 2, "notched {notched}: {} loops", plan.loops);
+            // (A bead crosses a notch's mouth, narrower than a width, as it crosses a gap
+            // between infill lines: held across it.)
+            assert_each_strand_held(&plan, &closing(&below, W / 2.0));
+        }
+    }
+
+    /// A roof over a hollow part (PrusaSlicer, 0.25 mm layers): its bridge lines run at 45
+    /// degrees to the wall, 0.3 mm clear of its inner perimeter, and turn in pairs, leaving V
+    /// notches 0.4 mm deep along the wall below's edge. Loops 1 and 2 lay in the notches and
+    /// within a contour's room of the roof's edge: clipped to nothing; the first loop laid
+    /// was 0.58 mm past the wall, in air (95.8 mm on the layer). Gaps that narrow are filled
+    /// from the wall: the loops start at it, and the notches are printed.
+    #[test]
+    fn notches_between_a_wall_and_a_roof_are_filled_by_the_first_loops() {
+        let below = mp(vec![rect(-1.5, -2.0, 0.0, 22.0)]);
+        let cut = notches(-0.06, 1.0, 0.44, 0.46, 1.285);
+        let area = difference(
+            &mp(vec![
+                rect(-1.5, -2.0, -0.36, 22.0),
+                rect(-0.06, -2.0, 10.0, 22.0),
+            ]),
+            &cut,
+        );
+        let zone = difference(&area, &below);
+        let biggest = zone
+            .0
+            .iter()
+            .max_by(|a, b| a.unsigned_area().total_cmp(&b.unsigned_area()))
+            .unwrap()
+            .clone();
+        let plan = plan_over(
+            biggest,
+            &below,
+            &area,
+            bead_widths(),
+            &PoaSettings::default(),
+        );
+        assert!(plan.loops >= 10, "{} loops", plan.loops);
+        assert_each_strand_held(&plan, &closing(&below, W / 2.0));
+        // The notches are printed: every point of them past the wall within half a width of
+        // a strand.
+        let strands: Vec<&Polyline> = plan.strands.iter().map(|s| &s.points).collect();
+        let holes = intersection(&cut, &mp(vec![rect(0.0, 2.0, 10.0, 18.0)]));
+        assert!(!holes.0.is_empty());
+        for p in &holes.0 {
+            for c in &p.exterior().0 {
+                assert!(
+                    dist_to([c.x, c.y], &strands) <= W / 2.0 + 0.02,
+                    "notch point {c:?} not printed"
+                );
             }
         }
     }

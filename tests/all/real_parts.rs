@@ -718,6 +718,50 @@ fn a_hollow_flare_s_rings_are_not_laid_twice() {
     no_layer_worse("hollow inverted pyramid", &before, &after);
 }
 
+/// PrusaSlicer's settings for a hollow part at quarter-millimetre layers: no infill, three
+/// perimeters, four top layers, 0.25 mm layers (its defaults otherwise).
+const HOLLOW_FINE: [&str; 8] = [
+    "--fill-density",
+    "0%",
+    "--perimeters",
+    "3",
+    "--top-solid-layers",
+    "4",
+    "--layer-height",
+    "0.25",
+];
+
+/// Hollow parts at 0.25 mm layers, where three ways of leaving a loop out met (2.3 m in air
+/// after the rewrite over these three parts):
+/// - a shelf's back wall goes on up over the shelf's last layer: the wall's side over the
+///   shelf stands on its edge, the rest of that side hangs over the wall's hollow inside. The
+///   perimeter along the edge was moved 0.3 mm off it, into the air, and laid first (25.6 mm
+///   in air on each shelf's next layer);
+/// - the shelf's top infill turns along that edge in notches, cutting the first loop into
+///   pieces too short to lay;
+/// - a roof's bridge lines meet the wall at 45 degrees, in pairs, leaving V notches between
+///   the wall and the roof: loops 1 and 2 found no room there, and the first loop laid hung
+///   0.58 mm past the wall (95.8 mm in air on the roof's first layer).
+///
+/// Every layer the slicer left over 5 mm in air has at most 1 mm left, and no layer is worse.
+/// A bowl's flank (a hollow shell, its wall's inside a void the rings step over) is no worse
+/// on any layer either: the void of a layer rewritten near the rim was widened, and the layer
+/// above, not a region itself, bridged it (0 -> 75.6 mm in air).
+#[test]
+fn hollow_parts_at_quarter_millimetre_layers_are_held_along_their_walls() {
+    for name in ["shelves_hole", "slope_steps", "inv_pyramid", "bowl"] {
+        let Some(d) = slice_defaults(name, &HOLLOW_FINE) else {
+            return;
+        };
+        let (new, _) = rewrite(&d, BridgeMode::Auto);
+        let (before, after) = before_after(name, &d, &new);
+        if name != "bowl" {
+            held_up(name, &before, &after, 5.0);
+        }
+        no_layer_worse(name, &before, &after);
+    }
+}
+
 /// Spiral vase prints (Cura's `magic_spiralize`, PrusaSlicer's `--spiral-vase`): a turn of
 /// the helix has no one height, and a sphere's top turns were rewritten at a fixed Z (an elbow
 /// by Cura in vase mode: one turn 0 -> 59 mm in air). Nothing of a helical layer is rewritten.
