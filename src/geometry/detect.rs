@@ -342,15 +342,20 @@ where
                     return (Vec::new(), None);
                 }
                 match (a, b) {
+                    // A layer the polygon library fails on (a panic deep in geo's booleans)
+                    // has no regions: it is left as sliced, and the rest of the file is not.
                     (Some(a), Some(b)) => {
-                        let regions = find_regions_as_sliced(b, l, a, opts);
-                        if regions.is_empty() || l.contact.is_empty() {
-                            return (regions, None);
-                        }
-                        match with_contact(b, l, &regions, &contact_hist, opts) {
-                            Some(b) => (find_regions_as_sliced(&b, l, a, opts), Some(b)),
-                            None => (regions, None),
-                        }
+                        std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                            let regions = find_regions_as_sliced(b, l, a, opts);
+                            if regions.is_empty() || l.contact.is_empty() {
+                                return (regions, None);
+                            }
+                            match with_contact(b, l, &regions, &contact_hist, opts) {
+                                Some(b) => (find_regions_as_sliced(&b, l, a, opts), Some(b)),
+                                None => (regions, None),
+                            }
+                        }))
+                        .unwrap_or_default()
                     }
                     // Both are computed whenever the proof failed (see `need`), but for a
                     // layer resting on one handed on before layers were seen to interleave:

@@ -38,6 +38,23 @@ pub const CLIPPER_SCALE: f64 = 10_000.0;
 /// Largest distance (mm) between a round offset's arc and its chords.
 pub const ARC_TOLERANCE: f64 = 0.005;
 
+/// Keeps the polygon library's own panics off stderr: the planner and the region search catch
+/// them (the region, or the layer, is left as sliced), so the message and backtrace would
+/// only alarm.
+/// Every other panic is printed as before. For binaries; a library leaves the hook alone.
+pub fn quiet_polygon_panics() {
+    let before = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        if info
+            .location()
+            .is_some_and(|l| l.file().contains("i_overlay"))
+        {
+            return;
+        }
+        before(info)
+    }));
+}
+
 /// Grows (`delta` > 0) or shrinks a polygon set by `delta` mm with round joins.
 pub fn offset(mp: &MultiPolygon<f64>, delta: f64) -> MultiPolygon<f64> {
     if mp.0.is_empty() {

@@ -316,11 +316,17 @@ pub fn plan_all(
     let reps: Vec<usize> = (0..source.len()).filter(|&i| source[i].0 == i).collect();
     let plan_one = |i: usize| {
         let (r, o) = regions[i];
-        // The windows cut for the comparison are what the planner would cut again.
-        match around[i].as_ref().and_then(|s| s.cut.as_ref()) {
-            Some(win) => super::plan_in(r, win, o, widths, settings, start),
-            None => plan(r, below, area, o, widths, settings, start),
-        }
+        // A region the polygon library fails on (an index out of bounds deep in geo's
+        // booleans, on a cylinder's ring by Cura once) is left as sliced: the rest of the
+        // file is still rewritten, and nothing is lost.
+        std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            // The windows cut for the comparison are what the planner would cut again.
+            match around[i].as_ref().and_then(|s| s.cut.as_ref()) {
+                Some(win) => super::plan_in(r, win, o, widths, settings, start),
+                None => plan(r, below, area, o, widths, settings, start),
+            }
+        }))
+        .unwrap_or_else(|_| super::no_plan(MultiPolygon::new(Vec::new())))
     };
     let planned: Vec<Plan> = reps.par_iter().map(|&i| plan_one(i)).collect();
     // A representative's growth must have ended by itself, short of the bound its reach (or

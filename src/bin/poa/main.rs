@@ -17,6 +17,7 @@ use print::{emit, emit_json, error_text, summary_line, write_stdout};
 fn main() -> ExitCode {
     bound_heap();
     printonair::output::remove_temps_on_signals();
+    printonair::geometry::quiet_polygon_panics();
     let cli = match args::parse_args() {
         Ok(cli) => cli,
         Err(code) => return code,
