@@ -2010,6 +2010,24 @@ impl<'a> PoaPass<'a> {
     /// the second and third layers' gradual overhangs were planned with a perimeter pulled
     /// in by 0.35 mm instead of 0.225, off their thin ring (a hull's stern by PrusaSlicer's
     /// defaults: its perimeter left 0.17 mm past the first layer's edge, 39 mm in air).
+    /// After [`PoaPass::layer_under`] panicked on `layer`: the layer goes out as sliced, what
+    /// was kept for the layer above is dropped (the layer above is judged on the layer as
+    /// sliced), and the report says so.
+    pub fn left_as_sliced_after_panic(&mut self, layer: &Layer) {
+        self.rewritten_below = None;
+        self.joined_below = None;
+        self.reread = None;
+        self.wide_below = None;
+        self.plain_written = None;
+        self.report.notes.push(format!(
+            "layer {} left as sliced: rewriting it failed inside poa (a panic, most likely in \
+             the polygon library); please report it with the file",
+            layer.index + 1
+        ));
+        self.limits.track_limits(&layer.raw);
+        self.note_wall_width(layer);
+    }
+
     fn note_wall_width(&mut self, layer: &Layer) {
         if self.width_stated || layer.kind != crate::layers::LayerKind::Layer || layer.on_bed() {
             return;
@@ -3680,13 +3698,24 @@ pub fn process<R: BufRead + Send, S: Sink + Send + ?Sized>(
         }
         let at = input_at;
         input_at += d.layer.raw.len() as u64;
-        let rewritten = pass
-            .layer_under(
+        // A layer whose rewrite panics (the polygon library's booleans have, on a cylinder's
+        // ring by Cura) goes out as sliced; the rest of the file is rewritten as usual.
+        let before = (pass.report.rewrites.len(), pass.report.skipped.len());
+        let rewritten = match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            pass.layer_under(
                 &d,
                 above.map(|a| &a.layer),
                 above.map_or(&[][..], |a| &a.regions[..]),
             )
-            .map_err(io::Error::other)?;
+        })) {
+            Ok(r) => r.map_err(io::Error::other)?,
+            Err(_) => {
+                pass.report.rewrites.truncate(before.0);
+                pass.report.skipped.truncate(before.1);
+                pass.left_as_sliced_after_panic(&d.layer);
+                None
+            }
+        };
         pass.note_area(d.layer.index, d.area);
         let report = &mut pass.report;
         let mut layer = d.layer;
