@@ -747,18 +747,39 @@ const HOLLOW_FINE: [&str; 8] = [
 /// A bowl's flank (a hollow shell, its wall's inside a void the rings step over) is no worse
 /// on any layer either: the void of a layer rewritten near the rim was widened, and the layer
 /// above, not a region itself, bridged it (0 -> 75.6 mm in air).
+/// The same parts by CuraEngine (MK3, no infill, three walls, 0.25 mm layers) are held too.
 #[test]
 fn hollow_parts_at_quarter_millimetre_layers_are_held_along_their_walls() {
     for name in ["shelves_hole", "slope_steps", "inv_pyramid", "bowl"] {
-        let Some(d) = slice_defaults(name, &HOLLOW_FINE) else {
-            return;
-        };
-        let (new, _) = rewrite(&d, BridgeMode::Auto);
-        let (before, after) = before_after(name, &d, &new);
-        if name != "bowl" {
-            held_up(name, &before, &after, 5.0);
+        // PrusaSlicer's own defaults under the flags (the samples' config holds the shelf's
+        // first layer up too, but leaves 0.7 mm more in air at a corner of the layer above
+        // it, 4.2 -> 4.9 mm, as it did before this test).
+        let mut slices = Vec::new();
+        if let Some(d) = slice_defaults(name, &HOLLOW_FINE) {
+            slices.push(("PrusaSlicer", d));
         }
-        no_layer_worse(name, &before, &after);
+        if let Some(d) = slice_cura(
+            &part(name),
+            "prusa_i3_mk3",
+            &[
+                "infill_sparse_density=0",
+                "wall_line_count=3",
+                "layer_height=0.25",
+                "top_layers=4",
+                "bottom_layers=4",
+            ],
+        ) {
+            slices.push(("Cura", d));
+        }
+        for (slicer, d) in slices {
+            let what = format!("{name} by {slicer}");
+            let (new, _) = rewrite(&d, BridgeMode::Auto);
+            let (before, after) = before_after(&what, &d, &new);
+            if name != "bowl" {
+                held_up(&what, &before, &after, 5.0);
+            }
+            no_layer_worse(&what, &before, &after);
+        }
     }
 }
 
