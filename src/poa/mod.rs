@@ -3462,6 +3462,18 @@ mod tests {
         MultiPolygon::new(v)
     }
 
+    /// The plan of the largest piece of `area` over air past `below`.
+    fn plan_biggest(below: &MultiPolygon<f64>, area: &MultiPolygon<f64>) -> Plan {
+        let zone = difference(area, below);
+        let biggest = zone
+            .0
+            .iter()
+            .max_by(|a, b| a.unsigned_area().total_cmp(&b.unsigned_area()))
+            .unwrap()
+            .clone();
+        plan_over(biggest, below, area, bead_widths(), &PoaSettings::default())
+    }
+
     /// A hollow wall standing on a shelf's edge (two shelves with a hole, sliced hollow): the
     /// wall's side over the shelf rests on it, the rest of the ring hangs over the wall's
     /// hollow inside. Loops are laid from the shelf's edge inward, the perimeter facing the
@@ -3480,20 +3492,7 @@ mod tests {
                 below = difference(&below, &notches(1.22, 1.0, 0.4, 0.25, 1.13));
             }
             let area = mp(vec![rect(0.0, -2.0, 1.25, 22.0)]);
-            let zone = difference(&area, &below);
-            let biggest = zone
-                .0
-                .iter()
-                .max_by(|a, b| a.unsigned_area().total_cmp(&b.unsigned_area()))
-                .unwrap()
-                .clone();
-            let plan = plan_over(
-                biggest,
-                &below,
-                &area,
-                bead_widths(),
-                &PoaSettings::default(),
-            );
+            let plan = plan_biggest(&below, &area);
             assert!(plan.loops >= 2, "notched {notched}: {} loops", plan.loops);
             // (A bead crosses a notch's mouth, narrower than a width, as it crosses a gap
             // between infill lines: held across it.)
@@ -3518,20 +3517,7 @@ mod tests {
             ]),
             &cut,
         );
-        let zone = difference(&area, &below);
-        let biggest = zone
-            .0
-            .iter()
-            .max_by(|a, b| a.unsigned_area().total_cmp(&b.unsigned_area()))
-            .unwrap()
-            .clone();
-        let plan = plan_over(
-            biggest,
-            &below,
-            &area,
-            bead_widths(),
-            &PoaSettings::default(),
-        );
+        let plan = plan_biggest(&below, &area);
         assert!(plan.loops >= 10, "{} loops", plan.loops);
         assert_each_strand_held(&plan, &closing(&below, W / 2.0));
         // The notches are printed: every point of them past the wall within half a width of
