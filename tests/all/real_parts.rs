@@ -1169,7 +1169,10 @@ fn a_chamfer_beside_a_part_of_another_layer_height_keeps_its_next_layer_held() {
 /// third layer rests on its second and on the first layer of all three. Its second layer's
 /// gradual rewrite moved the bow's perimeter; the third was not planned on it, the first
 /// layer's area (never made: detection proved that layer) missing from what it rests on,
-/// and its bow hung 1.1 mm more than as sliced.
+/// and its bow hung 1.1 mm more than as sliced. Judged layer by layer, not on the plate's
+/// total: what stays in air is the shelf's internal solid infill ending over the gaps of its
+/// sparse infill (support by design), and PrusaSlicer 2.5 lays it differently run to run
+/// (6-26 mm on the plate over six slices of the same models).
 #[test]
 fn a_hull_beside_parts_of_two_other_layer_heights_keeps_every_layer_held() {
     let what = "hull beside parts at two other layer heights";
@@ -1181,7 +1184,7 @@ fn a_hull_beside_parts_of_two_other_layer_heights_keeps_every_layer_held() {
     let Some((before, after)) = mixed_heights_rewrite(what, &plate) else {
         return;
     };
-    cut_to(what, &before, &after, 0.01);
+    held_up(what, &before, &after, 20.0);
 }
 
 /// A plate of test parts, each at (offset, layer height), sliced by PrusaSlicer's defaults
