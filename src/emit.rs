@@ -192,25 +192,77 @@ fn replaced(role: Role) -> bool {
 }
 
 /// The last `;TYPE:` and `;WIDTH:`-style lines seen, restored after a block so that G-code
-/// viewers keep labelling the slicer's strands correctly.
+/// viewers keep labelling the slicer's strands correctly; and the dialect they are in, which
+/// the block's own tags follow.
 #[derive(Default)]
 struct Tags {
     role: Option<String>,
     width: Option<String>,
     /// PrusaSlicer's `;HEIGHT:`, which its thick bridges set to the round bead's height.
     height: Option<String>,
+    /// Bambu Studio's tags (`; FEATURE:`, `; LINE_WIDTH:`), which OrcaSlicer also writes for
+    /// Bambu printers: their viewers read no `;TYPE:`.
+    feature_tags: bool,
+    /// Role names of OrcaSlicer and Bambu Studio ("Outer wall"), in either tag style.
+    orca_names: bool,
 }
+
+/// Role names only OrcaSlicer and Bambu Studio use (their `role_to_string`).
+const ORCA_ROLES: &[&str] = &[
+    "Outer wall",
+    "Inner wall",
+    "Overhang wall",
+    "Bridge wall",
+    "Sparse infill",
+    "Internal solid infill",
+    "Top surface",
+    "Bottom surface",
+    "Bridge",
+    "Internal Bridge",
+    "Gap infill",
+    "Floating vertical shell",
+    "Support transition",
+    "Prime tower",
+];
 
 impl Tags {
     fn see(&mut self, content: &[u8]) {
         let t = content.trim_ascii();
         let text = || Some(String::from_utf8_lossy(t).into_owned());
-        if t.starts_with(b";TYPE:") || t.starts_with(b"; FEATURE:") {
+        let role = t
+            .strip_prefix(b";TYPE:")
+            .or_else(|| t.strip_prefix(b"; FEATURE:"));
+        if let Some(name) = role {
             self.role = text();
+            self.feature_tags |= t.starts_with(b"; FEATURE:");
+            let name = name.trim_ascii();
+            self.orca_names |= ORCA_ROLES.iter().any(|r| r.as_bytes() == name);
         } else if t.starts_with(b";WIDTH:") || t.starts_with(b"; LINE_WIDTH:") {
             self.width = text();
+            self.feature_tags |= t.starts_with(b"; LINE_WIDTH:");
         } else if t.starts_with(b";HEIGHT:") {
             self.height = text();
+        }
+    }
+
+    /// The role line of poa's strands in the file's dialect: an overhang perimeter, which
+    /// poa reads back as one in every dialect (Cura and Simplify3D name none: PrusaSlicer's
+    /// name, which their viewers pass over).
+    fn loops_role(&self) -> &'static str {
+        match (self.feature_tags, self.orca_names) {
+            (true, _) => "; FEATURE: Overhang wall",
+            (false, true) => ";TYPE:Overhang wall",
+            (false, false) => ";TYPE:Overhang perimeter",
+        }
+    }
+
+    /// A width line in the file's dialect.
+    fn width_line(&self, width: f64) -> String {
+        let w = fmt_num(width, 3);
+        if self.feature_tags {
+            format!("; LINE_WIDTH: {w}")
+        } else {
+            format!(";WIDTH:{w}")
         }
     }
 }
@@ -1416,7 +1468,7 @@ fn emit_block(
         plan.loops,
         plan.strands.len()
     ));
-    w.line(";TYPE:Overhang perimeter");
+    w.line(tags.loops_role());
     // A file that tags bead heights says the loops' own: after a thick bridge's
     // `;HEIGHT:0.39` in a 0.2 mm layer, a reader took them for beads half as wide.
     // (Only where the last tag says otherwise: most blocks follow a `;HEIGHT:` of the layer.)
@@ -1521,7 +1573,7 @@ fn emit_block(
         last_loop = s.loop_index;
         let bead = flow_width(per_mm, 1.0, height, motion.filament_area);
         if (bead - width_tag).abs() > 1e-6 {
-            w.line(&format!(";WIDTH:{}", fmt_num(bead, 3)));
+            w.line(&tags.width_line(bead));
             width_tag = bead;
         }
         let speed = match s.kind {

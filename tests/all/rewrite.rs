@@ -271,6 +271,60 @@ fn running_twice_changes_nothing() {
     assert!(!emit::already_processed(&original[..65536]));
 }
 
+/// OrcaSlicer's files, for Bambu printers (`; FEATURE:` tags) and for others (`;TYPE:Outer
+/// wall`), are rewritten exactly as their PrusaSlicer twin (the same moves, told in PrusaSlicer's
+/// tags): the same regions, loops and bytes, and poa's own tags in the file's dialect (an
+/// Orca viewer shows no `;TYPE:` of a Bambu file and no role named "Overhang perimeter").
+#[test]
+fn orca_and_bambu_files_are_rewritten_as_their_prusaslicer_twin_in_their_own_tags() {
+    let mut files: Vec<(String, Vec<u8>)> = samples()
+        .iter()
+        .filter(|p| p.to_string_lossy().contains("_prusa_"))
+        .map(|p| (p.display().to_string(), read(p)))
+        .collect();
+    assert!(files.len() >= 8);
+    // Gradual overhangs' blocks tag their beads' widths too.
+    for part in ["hook", "sphere_stem"] {
+        if let Some(d) = slice(part, &[]) {
+            files.push((format!("{part} by PrusaSlicer"), d));
+        }
+    }
+    let without_mark = |d: &[u8]| -> Vec<u8> {
+        d.split_inclusive(|&b| b == b'\n')
+            .filter(|l| !l.starts_with(emit::HEADER_MARK.as_bytes()))
+            .flatten()
+            .copied()
+            .collect()
+    };
+    for (name, prusa) in &files {
+        let (out, rep) = rewrite(prusa, BridgeMode::Auto);
+        assert!(rep.regions_rewritten >= 1, "{name}: nothing rewritten");
+        for bambu in [false, true] {
+            let what = format!("{name} as OrcaSlicer writes it (Bambu tags: {bambu})");
+            let (orca_out, orca_rep) = rewrite(&as_orca(prusa, bambu), BridgeMode::Auto);
+            assert_eq!(
+                (orca_rep.regions_rewritten, orca_rep.rewrites.len()),
+                (rep.regions_rewritten, rep.rewrites.len()),
+                "{what}"
+            );
+            assert!(
+                without_mark(&orca_out) == without_mark(&as_orca(&out, bambu)),
+                "{what}: not the PrusaSlicer file's rewrite, retold"
+            );
+            let text = String::from_utf8_lossy(&orca_out);
+            assert!(!text.contains("Overhang perimeter"), "{what}");
+            if bambu {
+                assert!(
+                    !text
+                        .lines()
+                        .any(|l| l.starts_with(";TYPE:") || l.starts_with(";WIDTH:")),
+                    "{what}: PrusaSlicer's tags in a Bambu file"
+                );
+            }
+        }
+    }
+}
+
 /// Other dialects: poa's strands rest on material and the file's E count stays right.
 #[test]
 fn cura_slic3r_and_comment_less_files() {
