@@ -510,12 +510,16 @@ pub fn no_layer_worse(
     }
 }
 
+/// The auxiliary-fan line [`as_orca`] writes after each part-fan line of a Bambu-style file.
+pub const BAMBU_AUX_FAN: &str = "M106 P2 S0";
+
 /// A PrusaSlicer file retold in OrcaSlicer's dialect, line for line: its role names ("Outer
 /// wall"), its config block markers, its header; with `bambu` also the tags OrcaSlicer and
 /// Bambu Studio write for Bambu printers (`; FEATURE:`, `; CHANGE_LAYER`, `; Z_HEIGHT:`,
 /// `; LAYER_HEIGHT:`, `; LINE_WIDTH:`), else the ones it writes for other printers (`;TYPE:`,
 /// `;LAYER_CHANGE`, `;Z:`, `;HEIGHT:`, `;WIDTH:`). The moves are the same bytes: poa must
-/// find and plan the same regions in both.
+/// find and plan the same regions in both. A Bambu-style file also turns its auxiliary fan
+/// off after each part-fan line ([`BAMBU_AUX_FAN`]), as Bambu Studio's layers do.
 pub fn as_orca(data: &[u8], bambu: bool) -> Vec<u8> {
     const ROLES: &[(&str, &str)] = &[
         ("External perimeter", "Outer wall"),
@@ -576,6 +580,11 @@ pub fn as_orca(data: &[u8], bambu: bool) -> Vec<u8> {
         };
         out.push_str(&told);
         out.push_str(end);
+        // Bambu Studio turns its auxiliary fan off wherever it sets the part fan.
+        if bambu && body.starts_with("M106 S") {
+            out.push_str(BAMBU_AUX_FAN);
+            out.push('\n');
+        }
     }
     out.into_bytes()
 }
