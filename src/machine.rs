@@ -453,10 +453,11 @@ impl Machine {
                 self.e_modes.relative = true;
                 Action::None
             }
-            // `P1`, `P2`..: another fan (Bambu's auxiliary and chamber fans, a second part
-            // fan), which poa neither sets nor restores: read as the part fan, a layer's
-            // `M106 S255` then `M106 P2 S0` left the part fan off after poa's block.
-            (b'M', 106 | 107) if p.get(b'P').is_some_and(|n| n != 0.0) => Action::None,
+            // `P2`, `P3`..: another fan (Bambu's auxiliary and chamber fans), which poa
+            // neither sets nor restores: read as the part fan, a layer's `M106 S255` then
+            // `M106 P2 S0` left the part fan off after poa's block. `P1` stays the part fan:
+            // it is Bambu's name for it (its custom G-code's `M106 P1 S0`).
+            (b'M', 106 | 107) if p.get(b'P').is_some_and(|n| n >= 2.0) => Action::None,
             (b'M', 106) => {
                 let s = self.word(p, b'S', line).unwrap_or(255.0);
                 self.fan = (s / 255.0).clamp(0.0, 1.0);
@@ -759,11 +760,12 @@ mod tests {
     #[test]
     fn only_the_part_fan_is_the_fan() {
         // Bambu Studio starts each layer so: the part fan at full, the auxiliary fan off.
-        let (m, a) = run("M106 S255\nM106 P2 S0\nM106 P3 S0\nM107 P1\nM106 P0 S127.5");
+        let (m, a) = run("M106 S255\nM106 P2 S0\nM106 P3 S0\nM107 P2\nM106 P1 S127.5\nM107 P0");
         assert_eq!(a[0], Action::Fan(1.0));
         assert_eq!(&a[1..4], &[Action::None, Action::None, Action::None]);
         assert_eq!(a[4], Action::Fan(0.5));
-        assert_eq!(m.fan, 0.5);
+        assert_eq!(a[5], Action::Fan(0.0));
+        assert_eq!(m.fan, 0.0);
     }
 
     #[test]
