@@ -2943,9 +2943,10 @@ impl PoaPass<'_> {
                 })
             })
         };
-        let (rewrites, held) = drop_held(layer, &below, rewrites, self.width_on(layer), || {
-            sliced().as_ref()
-        });
+        let (rewrites, held, doubtful) =
+            drop_held(layer, &below, rewrites, self.width_on(layer), || {
+                sliced().as_ref()
+            });
         self.report.skipped.extend(held);
         let (rewrites, repeated) = drop_repeated(layer.index + 1, rewrites);
         self.report.skipped.extend(repeated);
@@ -2965,6 +2966,43 @@ impl PoaPass<'_> {
                 }
             })
             .collect();
+        let rewrites = if doubtful.is_empty() {
+            rewrites
+        } else {
+            let above_on = above.filter(|a| a.rests_on.contains(&layer.index));
+            let in_air = |set: &[RegionRewrite]| -> Option<f64> {
+                if set.is_empty() {
+                    return sliced().as_ref().map(|c| c.in_air_mm);
+                }
+                let window = sliced_window?;
+                let (bytes, _) = rewrite_layer(
+                    layer,
+                    &below,
+                    above_on,
+                    set,
+                    &self.motion,
+                    &self.opts.settings,
+                    BlockPlace::AtEntry,
+                );
+                let back = reread(layer, &bytes, &self.config)?;
+                Some(crate::check::in_air_within(
+                    &judged_below,
+                    &back,
+                    self.motion.filament_area,
+                    window,
+                ))
+            };
+            let (kept, dropped) = keeps_gain(rewrites, &doubtful, in_air);
+            self.report
+                .skipped
+                .extend(dropped.into_iter().map(|r| SkippedRegion {
+                    region: r.id,
+                    layer: layer.index + 1,
+                    kind: r.kind,
+                    reason: PERIMETER_HELD.into(),
+                }));
+            kept
+        };
         // Only a gradual overhang's plan moves the outline the layer above stands on (a wide
         // region's loops fill its zone, and its perimeter's inset is within the tolerance):
         // the layer above finds its regions on this layer as rewritten only then. (Finding
@@ -3462,23 +3500,25 @@ const JUDGED_AREA: f64 = 100.0;
 /// held all along, by the layers `below` as printed (poa's rewrite of the layer under it
 /// included): moving it would gain nothing there, and the wall above was sliced on it
 /// where it is; and the ladders whose slicer loop it finds held or short-bridged. They go to
-/// the report.
+/// the report. A gradual overhang whose perimeter holds but over whose zone a bridge line
+/// hangs in air (laid along a hole's ceiling) is kept, its id in the third list: it is
+/// worth its loops only where the layer comes out less in air with it ([`keeps_gain`]).
 fn drop_held<'c>(
     layer: &Layer,
     below: &[&Layer],
     rewrites: Vec<RegionRewrite>,
     loop_width: f64,
     sliced: impl FnOnce() -> Option<&'c crate::check::LayerCheck>,
-) -> (Vec<RegionRewrite>, Vec<SkippedRegion>) {
+) -> (Vec<RegionRewrite>, Vec<SkippedRegion>, Vec<usize>) {
     if below.is_empty()
         || !rewrites
             .iter()
             .any(|r| r.plan.with_perimeter || r.plan.ladder)
     {
-        return (rewrites, Vec::new());
+        return (rewrites, Vec::new(), Vec::new());
     }
     let Some(c) = sliced() else {
-        return (rewrites, Vec::new());
+        return (rewrites, Vec::new(), Vec::new());
     };
     // Every perimeter, not the external one alone: in a hollow part the wall's inner
     // perimeter steps over the void inside the wall below (a lying pipe's bore side at 0 %
@@ -3496,8 +3536,17 @@ fn drop_held<'c>(
         .filter(|s| walls.binary_search(&s.line).is_ok())
         .map(|s| (s.point, s.support == crate::check::Support::InAir))
         .collect();
+    let bridges = lines_of(layer, |r| r == Role::BridgeInfill);
+    let hanging: Vec<[f64; 2]> = c
+        .samples
+        .iter()
+        .filter(|s| s.support == crate::check::Support::InAir)
+        .filter(|s| bridges.binary_search(&s.line).is_ok())
+        .map(|s| s.point)
+        .collect();
     let mut kept = Vec::with_capacity(rewrites.len());
     let mut skipped = Vec::new();
+    let mut doubtful = Vec::new();
     for r in rewrites {
         let held = (r.plan.with_perimeter || r.plan.ladder) && {
             // The perimeter's centreline runs up to half a width inside the zone's edge.
@@ -3506,9 +3555,18 @@ fn drop_held<'c>(
             // A narrow cantilever's walls out and back are a short bridge where they hold at
             // both ends (a letter's stroke 3 mm out of a wall): rungs there cost time for
             // nothing the check sees.
-            !unheld
+            let held = !unheld
                 .iter()
-                .any(|(p, in_air)| (*in_air || !r.plan.ladder) && index.contains(*p))
+                .any(|(p, in_air)| (*in_air || !r.plan.ladder) && index.contains(*p));
+            if held && r.plan.with_perimeter && !hanging.is_empty() {
+                let zone = RingIndex::new(&r.plan.zone);
+                if hanging.iter().any(|p| zone.contains(*p)) {
+                    doubtful.push(r.id);
+                    kept.push(r);
+                    continue;
+                }
+            }
+            held
         };
         if held {
             skipped.push(SkippedRegion {
@@ -3521,7 +3579,33 @@ fn drop_held<'c>(
             kept.push(r);
         }
     }
-    (kept, skipped)
+    (kept, skipped, doubtful)
+}
+
+/// The rewrites of a layer with or without the `doubtful` ones ([`drop_held`]), whichever
+/// leaves the layer less in air (`in_air` of a set, `None` when it cannot be judged): the
+/// doubtful ones stay only where they take more than the check's margin out of the air
+/// (a bolt block's bridge line along its hole's ceiling: 16.8 mm -> 0); otherwise they
+/// cost loops for nothing, or do worse beside the others (a fillet bracket's two rings
+/// beside its roof: 0 -> 1.8 mm). Returns (kept, dropped).
+fn keeps_gain(
+    rewrites: Vec<RegionRewrite>,
+    doubtful: &[usize],
+    in_air: impl Fn(&[RegionRewrite]) -> Option<f64>,
+) -> (Vec<RegionRewrite>, Vec<RegionRewrite>) {
+    let sure: Vec<RegionRewrite> = rewrites
+        .iter()
+        .filter(|r| !doubtful.contains(&r.id))
+        .cloned()
+        .collect();
+    let gain = in_air(&sure).zip(in_air(&rewrites)).map(|(a, b)| a - b);
+    if gain.is_some_and(|g| g > WORSE_IN_AIR) {
+        (rewrites, Vec::new())
+    } else {
+        rewrites
+            .into_iter()
+            .partition(|r| !doubtful.contains(&r.id))
+    }
 }
 
 /// Share of a rewrite's zone that the zones of the layer's rewrites before it may cover before
@@ -4348,6 +4432,42 @@ mod tests {
         ];
         let (kept, _) = drop_repeated(1, v);
         assert_eq!(kept.len(), 2);
+    }
+
+    #[test]
+    fn rewrites_kept_for_a_hanging_bridge_stay_only_where_they_take_it_out_of_the_air() {
+        use crate::geometry::testutil::{mp, rect};
+        let rewrite = |id: usize| RegionRewrite {
+            id,
+            kind: RegionKind::Overhang,
+            plan: Plan {
+                zone: mp(vec![rect(id as f64, 0.0, id as f64 + 0.5, 5.0)]),
+                strands: vec![loop_strand(1, vec![[0.0, 0.0], [1.0, 0.0]])],
+                loops: 1,
+                with_perimeter: true,
+                ladder: false,
+            },
+            height: 0.25,
+            no_connect: MultiPolygon::new(Vec::new()),
+        };
+        let ids = |v: &[RegionRewrite]| v.iter().map(|r| r.id).collect::<Vec<_>>();
+        // The layer's in air with a set of rewrites: region 7's loops replace a bridge line
+        // hanging 16.8 mm over its zone; region 9's make 1.8 mm worse beside region 8's.
+        let judge = |v: &[RegionRewrite]| -> Option<f64> {
+            let has = |id| v.iter().any(|r| r.id == id);
+            Some(if has(7) { 0.0 } else { 16.8 } + if has(9) { 1.8 } else { 0.0 })
+        };
+        let (kept, dropped) = keeps_gain(vec![rewrite(6), rewrite(7), rewrite(8)], &[7], judge);
+        assert_eq!((ids(&kept), ids(&dropped)), (vec![6, 7, 8], vec![]));
+        let (kept, dropped) = keeps_gain(vec![rewrite(8), rewrite(9)], &[9], judge);
+        assert_eq!((ids(&kept), ids(&dropped)), (vec![8], vec![9]));
+        // A gain within the check's margin costs loops for nothing; a layer that cannot be
+        // judged keeps to the rule that left such rings as sliced.
+        let small = |v: &[RegionRewrite]| Some(if v.len() == 2 { 1.0 } else { 1.2 });
+        let (kept, dropped) = keeps_gain(vec![rewrite(1), rewrite(2)], &[2], small);
+        assert_eq!((ids(&kept), ids(&dropped)), (vec![1], vec![2]));
+        let (kept, dropped) = keeps_gain(vec![rewrite(1), rewrite(2)], &[2], |_| None);
+        assert_eq!((ids(&kept), ids(&dropped)), (vec![1], vec![2]));
     }
 
     #[test]

@@ -783,6 +783,27 @@ fn hollow_parts_at_quarter_millimetre_layers_are_held_along_their_walls() {
     }
 }
 
+/// Horizontal holes through hollow parts at 0.25 mm layers (a bolt block, a lying pipe):
+/// near a hole's ceiling PrusaSlicer lays bridge lines along the hole, over the slit the
+/// layer below leaves, while the ceiling's sides are gradual overhangs whose perimeters hold.
+/// Those regions were left as sliced for their held perimeters, and the bridge line hung
+/// (16.8 mm in air on the bolt block's layer 48, 27.3 on the pipe's layer 56); a region over
+/// whose zone a bridge line hangs is now rewritten where that leaves the layer less in air.
+/// Every layer the slicer left over 5 mm in air has at most 1 mm left, and none is worse.
+#[test]
+fn a_bridge_line_along_a_hole_s_ceiling_is_replaced_by_loops() {
+    for name in ["bolt_block", "pipe_lying"] {
+        let Some(d) = slice_defaults(name, &HOLLOW_FINE) else {
+            return;
+        };
+        let what = format!("{name} by PrusaSlicer, hollow at 0.25 mm");
+        let (new, _) = rewrite(&d, BridgeMode::Auto);
+        let (before, after) = before_after(&what, &d, &new);
+        held_up(&what, &before, &after, 5.0);
+        no_layer_worse(&what, &before, &after);
+    }
+}
+
 /// Spiral vase prints (Cura's `magic_spiralize`, PrusaSlicer's `--spiral-vase`): a turn of
 /// the helix has no one height, and a sphere's top turns were rewritten at a fixed Z (an elbow
 /// by Cura in vase mode: one turn 0 -> 59 mm in air). Nothing of a helical layer is rewritten.
