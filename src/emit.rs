@@ -4390,12 +4390,11 @@ mod tests {
         assert!((merged[1].written_length_mm - 5.0).abs() < 1e-9);
     }
 
-    #[test]
-    fn a_rewrite_whose_zone_others_on_the_layer_fill_already_is_dropped() {
-        use crate::geometry::testutil::{mp, rect};
-        let rewrite = |id: usize, zone: MultiPolygon<f64>| RegionRewrite {
+    /// A rewrite of region `id` over `zone`: one loop, 0.3 mm high.
+    fn one_loop(id: usize, kind: RegionKind, zone: MultiPolygon<f64>) -> RegionRewrite {
+        RegionRewrite {
             id,
-            kind: RegionKind::Bridge,
+            kind,
             plan: Plan {
                 zone,
                 strands: vec![loop_strand(1, vec![[0.0, 0.0], [1.0, 0.0]])],
@@ -4405,7 +4404,13 @@ mod tests {
             },
             height: 0.3,
             no_connect: MultiPolygon::new(Vec::new()),
-        };
+        }
+    }
+
+    #[test]
+    fn a_rewrite_whose_zone_others_on_the_layer_fill_already_is_dropped() {
+        use crate::geometry::testutil::{mp, rect};
+        let rewrite = |id: usize, zone: MultiPolygon<f64>| one_loop(id, RegionKind::Bridge, zone);
         // A shelf's zone planned whole by region 30, a strip of it planned again by 39, and
         // a region beside the shelf (overlapping it by a fifth) and one far off.
         let v = vec![
@@ -4437,18 +4442,11 @@ mod tests {
     #[test]
     fn rewrites_kept_for_a_hanging_bridge_stay_only_where_they_take_it_out_of_the_air() {
         use crate::geometry::testutil::{mp, rect};
-        let rewrite = |id: usize| RegionRewrite {
-            id,
-            kind: RegionKind::Overhang,
-            plan: Plan {
-                zone: mp(vec![rect(id as f64, 0.0, id as f64 + 0.5, 5.0)]),
-                strands: vec![loop_strand(1, vec![[0.0, 0.0], [1.0, 0.0]])],
-                loops: 1,
-                with_perimeter: true,
-                ladder: false,
-            },
-            height: 0.25,
-            no_connect: MultiPolygon::new(Vec::new()),
+        let rewrite = |id: usize| {
+            let zone = mp(vec![rect(id as f64, 0.0, id as f64 + 0.5, 5.0)]);
+            let mut r = one_loop(id, RegionKind::Overhang, zone);
+            r.plan.with_perimeter = true;
+            r
         };
         let ids = |v: &[RegionRewrite]| v.iter().map(|r| r.id).collect::<Vec<_>>();
         // The layer's in air with a set of rewrites: region 7's loops replace a bridge line
