@@ -242,6 +242,10 @@ impl Tags {
             self.feature_tags |= t.starts_with(b"; LINE_WIDTH:");
         } else if t.starts_with(b";HEIGHT:") {
             self.height = text();
+        } else if t == b"; CHANGE_LAYER" || t.starts_with(b"; Z_HEIGHT:") {
+            // Bambu-style layer tags come first in a layer: a block before any role line
+            // of its layer still speaks the file's dialect.
+            self.feature_tags = true;
         }
     }
 
@@ -4437,6 +4441,30 @@ mod tests {
         ];
         let (kept, _) = drop_repeated(1, v);
         assert_eq!(kept.len(), 2);
+    }
+
+    #[test]
+    fn poa_s_tags_follow_the_file_s_dialect() {
+        let seen = |lines: &[&str]| {
+            let mut t = Tags::default();
+            for l in lines {
+                t.see(l.as_bytes());
+            }
+            (t.loops_role(), t.width_line(0.45))
+        };
+        assert_eq!(
+            seen(&[";LAYER_CHANGE", ";TYPE:External perimeter", ";WIDTH:0.45"]),
+            (";TYPE:Overhang perimeter", ";WIDTH:0.45".to_string())
+        );
+        assert_eq!(
+            seen(&[";TYPE:Outer wall", ";WIDTH:0.42"]),
+            (";TYPE:Overhang wall", ";WIDTH:0.45".to_string())
+        );
+        let bambu = ("; FEATURE: Overhang wall", "; LINE_WIDTH: 0.45".to_string());
+        assert_eq!(seen(&["; FEATURE: Inner wall"]), bambu);
+        // Before any role line of the layer: its layer tags tell.
+        assert_eq!(seen(&["; CHANGE_LAYER", "; Z_HEIGHT: 0.4"]), bambu);
+        assert_eq!(seen(&[";TYPE:WALL-OUTER"]).0, ";TYPE:Overhang perimeter");
     }
 
     #[test]
