@@ -149,8 +149,21 @@ impl SlicerConfig {
         }
     }
 
+    /// The value of a setting by PrusaSlicer's name, or by OrcaSlicer's and Bambu Studio's
+    /// name for it where the file has only that ([`ORCA_NAMES`]).
     pub fn get(&self, key: &str) -> Option<&str> {
-        self.values.get(key).map(String::as_str)
+        self.values.get(self.named(key)).map(String::as_str)
+    }
+
+    /// The name the file gives the setting PrusaSlicer calls `key`.
+    fn named<'k>(&self, key: &'k str) -> &'k str {
+        if self.values.contains_key(key) {
+            return key;
+        }
+        ORCA_NAMES
+            .iter()
+            .find(|(prusa, orca)| *prusa == key && self.values.contains_key(*orca))
+            .map_or(key, |(_, orca)| orca)
     }
 
     /// Sets `key` to a value poa inferred (the file and the environment state none), saying
@@ -376,6 +389,27 @@ impl SlicerConfig {
     }
 }
 
+/// OrcaSlicer's and Bambu Studio's names for the PrusaSlicer settings poa reads: (PrusaSlicer,
+/// Orca). An Orca file at 0 % infill (`sparse_infill_density`) was not known hollow, and its
+/// widths fell back to 1.125 x the nozzle.
+pub const ORCA_NAMES: &[(&str, &str)] = &[
+    (
+        "external_perimeter_extrusion_width",
+        "outer_wall_line_width",
+    ),
+    ("perimeter_extrusion_width", "inner_wall_line_width"),
+    ("extrusion_width", "line_width"),
+    ("first_layer_extrusion_width", "initial_layer_line_width"),
+    ("first_layer_height", "initial_layer_print_height"),
+    ("fill_density", "sparse_infill_density"),
+    ("retract_length", "retraction_length"),
+    ("retract_speed", "retraction_speed"),
+    ("deretract_speed", "deretraction_speed"),
+    ("retract_lift", "z_hop"),
+    ("retract_before_travel", "retraction_minimum_travel"),
+    ("bed_shape", "printable_area"),
+];
+
 /// The slicer settings poa uses, with the values it accepts: (key, least, most, unit).
 /// A value of exactly 0 is always accepted (PrusaSlicer's "auto" or "off"); widths may also be
 /// percentages (of the nozzle, 5-1000 %). Anything outside is a damaged or hostile file or
@@ -451,6 +485,7 @@ impl SlicerConfig {
                 } else {
                     "the file's configuration".to_string()
                 };
+                let key = self.named(key);
                 return Err(crate::error::Error::Invalid(format!(
                     "slicer setting {key} = {item} (from {origin}) is outside {lo}-{hi} {unit}; fix it in the slicer and export again"
                 )));
@@ -462,6 +497,27 @@ impl SlicerConfig {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn orca_s_names_are_read_and_range_checked() {
+        let orca = super::SlicerConfig::parse(
+            b"; CONFIG_BLOCK_START\n; nozzle_diameter = 0.4\n; line_width = 0.42\n\
+; outer_wall_line_width = 0\n; sparse_infill_density = 0%\n; retraction_length = 0.6\n\
+; z_hop = 0.4\n; CONFIG_BLOCK_END\n",
+        );
+        // Orca's 0 is "the line width", as PrusaSlicer's is "the extrusion width".
+        assert_eq!(orca.external_perimeter_width(), 0.42);
+        assert_eq!(orca.fill_density(), Some(0.0));
+        assert_eq!(orca.retract_length(), 0.6);
+        assert_eq!(orca.get("retract_lift"), Some("0.4"));
+        // PrusaSlicer's own name wins where both are there.
+        let both =
+            super::SlicerConfig::parse(b"; fill_density = 20%\n; sparse_infill_density = 0%\n");
+        assert_eq!(both.fill_density(), Some(20.0));
+        let absurd = super::SlicerConfig::parse(b"; outer_wall_line_width = 1e13\n");
+        let e = absurd.check().unwrap_err().to_string();
+        assert!(e.contains("outer_wall_line_width = 1e13"), "{e}");
+    }
+
     #[test]
     fn cura_front_end_settings_are_read() {
         // As Cura 4.13 writes them: cut at 80 columns, the JSON's `\n` escaped once more.

@@ -514,7 +514,7 @@ pub fn no_layer_worse(
 pub const BAMBU_AUX_FAN: &str = "M106 P2 S0";
 
 /// A PrusaSlicer file retold in OrcaSlicer's dialect, line for line: its role names ("Outer
-/// wall"), its config block markers, its header; with `bambu` also the tags OrcaSlicer and
+/// wall"), its config block markers and setting names (`sparse_infill_density`), its header; with `bambu` also the tags OrcaSlicer and
 /// Bambu Studio write for Bambu printers (`; FEATURE:`, `; CHANGE_LAYER`, `; Z_HEIGHT:`,
 /// `; LAYER_HEIGHT:`, `; LINE_WIDTH:`), else the ones it writes for other printers (`;TYPE:`,
 /// `;LAYER_CHANGE`, `;Z:`, `;HEIGHT:`, `;WIDTH:`). The moves are the same bytes: poa must
@@ -535,6 +535,9 @@ pub fn as_orca(data: &[u8], bambu: bool) -> Vec<u8> {
         ("Support material interface", "Support interface"),
         ("Wipe tower", "Prime tower"),
     ];
+    // Orca's names for the settings, as poa's table states them (checked against Bambu
+    // Studio's config blocks).
+    use printonair::config::ORCA_NAMES as SETTINGS;
     let text = String::from_utf8(data.to_vec()).expect("a UTF-8 PrusaSlicer file");
     let mut out = String::with_capacity(text.len() + 4096);
     for line in text.split_inclusive('\n') {
@@ -553,6 +556,12 @@ pub fn as_orca(data: &[u8], bambu: bool) -> Vec<u8> {
             "; CONFIG_BLOCK_START".into()
         } else if body == "; prusaslicer_config = end" {
             "; CONFIG_BLOCK_END".into()
+        } else if let Some((key, value)) = body
+            .strip_prefix("; ")
+            .and_then(|kv| kv.split_once(" = "))
+            .and_then(|(k, v)| SETTINGS.iter().find(|(p, _)| *p == k).map(|(_, o)| (o, v)))
+        {
+            format!("; {key} = {value}")
         } else if let Some(role) = body.strip_prefix(";TYPE:") {
             let name = ROLES
                 .iter()
