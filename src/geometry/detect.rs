@@ -78,13 +78,16 @@ pub(crate) fn bundle_full(n: usize, w: usize) -> bool {
 /// Most layers in a batch, however light.
 const MAX_BATCH: usize = 64;
 
-/// Layers read ahead of the geometry: eight batches, so that the reader keeps reading
-/// through a layer whose geometry takes long (a plate's caps) and the geometry does not wait
-/// for it after (16 mushrooms: it waited 15-27 ms with one batch ahead; analyze 162 -> 156 ms).
-const READ_AHEAD: usize = 8 * BATCH;
+/// Bundles of layers read ahead of the geometry: enough that the byte budget below is what
+/// stops the reader, so that it keeps reading through a layer whose geometry takes long (a
+/// plate's caps) and the geometry does not wait for it after (16 mushrooms: it waited 15-27
+/// ms with one batch ahead; analyze 162 -> 156 ms).
+const READ_AHEAD: usize = 64 * BATCH;
 /// ... and no more than this much of them ([`weight`]), so that peak memory stays flat
-/// however big a plate's layers are.
-const READ_AHEAD_BYTES: usize = 3 << 20;
+/// however big a plate's layers are. 8 MB: the 16 mushrooms' cap layers and the plans after
+/// them take some 150 ms, in which the reader read 3 MB and then waited (analyze 203 -> 189
+/// ms, min of 21 runs; peak RSS 25 -> 29 MB).
+const READ_AHEAD_BYTES: usize = 8 << 20;
 
 /// Bytes a layer holds: its raw text and, per segment, a point, a line number and an E.
 pub fn weight(layer: &Layer) -> usize {

@@ -385,9 +385,20 @@ fn joined_across_slits(raw: MultiPolygon<f64>, r: f64) -> MultiPolygon<f64> {
     if raw.0.len() < 2 || r <= 0.0 {
         return raw;
     }
+    // Only pieces within `2 r` of another can join; growing by `r` keeps a piece inside its
+    // box grown by `r`, so a piece whose grown box meets no other's closes alone and is kept
+    // as it is. Those are left out of the closing (a plate's caps: one ring each, far apart,
+    // were all grown and shrunk for nothing).
+    let near = near_another(&raw, r);
+    let (near_pieces, far): (Vec<_>, Vec<_>) = raw.0.into_iter().zip(near).partition(|(_, n)| *n);
+    let raw = MultiPolygon::new(near_pieces.into_iter().map(|(p, _)| p).collect());
+    let far = far.into_iter().map(|(p, _)| p);
+    if raw.0.len() < 2 {
+        return MultiPolygon::new(raw.0.into_iter().chain(far).collect());
+    }
     let closed = super::closing(&raw, r);
     if closed.0.len() >= raw.0.len() {
-        return raw;
+        return MultiPolygon::new(raw.0.into_iter().chain(far).collect());
     }
     let mut out = Vec::with_capacity(closed.0.len());
     let mut used = vec![false; raw.0.len()];
@@ -416,7 +427,42 @@ fn joined_across_slits(raw: MultiPolygon<f64>, r: f64) -> MultiPolygon<f64> {
             .filter(|(_, u)| !u)
             .map(|(p, _)| p.clone()),
     );
+    out.extend(far);
     MultiPolygon::new(out)
+}
+
+/// For each polygon of `mp`, whether its box grown by `r` meets another's (a sweep over the
+/// boxes sorted by their left edge).
+fn near_another(mp: &MultiPolygon<f64>, r: f64) -> Vec<bool> {
+    let boxes: Vec<Option<Rect<f64>>> = mp.0.iter().map(|p| p.bounding_rect()).collect();
+    let mut near = vec![false; boxes.len()];
+    let mut order: Vec<usize> = Vec::with_capacity(boxes.len());
+    for (i, b) in boxes.iter().enumerate() {
+        match b {
+            Some(_) => order.push(i),
+            // No box (an empty ring): let the closing judge it, as before.
+            None => near[i] = true,
+        }
+    }
+    let lo = |i: usize| boxes[i].map_or(f64::NAN, |b| b.min().x - r);
+    let hi = |i: usize| boxes[i].map_or(f64::NAN, |b| b.max().x + r);
+    order.sort_by(|&a, &b| lo(a).total_cmp(&lo(b)));
+    for (k, &i) in order.iter().enumerate() {
+        let (Some(bi), hi_i) = (boxes[i], hi(i)) else {
+            continue;
+        };
+        for &j in &order[k + 1..] {
+            if lo(j) > hi_i {
+                break;
+            }
+            let Some(bj) = boxes[j] else { continue };
+            if bi.min().y - r <= bj.max().y + r && bj.min().y - r <= bi.max().y + r {
+                near[i] = true;
+                near[j] = true;
+            }
+        }
+    }
+    near
 }
 
 /// `here - (below grown by tol)`, part by part: each polygon of `here` (they are disjoint)
@@ -836,6 +882,52 @@ mod tests {
         // Pieces far apart are returned untouched.
         let apart = mp(vec![rect(0.0, 0.0, 1.0, 1.0), rect(3.0, 0.0, 4.0, 1.0)]);
         assert_eq!(joined_across_slits(apart.clone(), 0.1125), apart);
+    }
+
+    #[test]
+    fn only_pieces_within_reach_of_another_are_closed() {
+        // Boxes 0.2 apart in X (within 2 r = 0.225), one 0.3 apart in Y from the first (not),
+        // one far off; one inside the hole of a frame.
+        let frame = Polygon::new(
+            LineString::from(vec![(20.0, 0.0), (30.0, 0.0), (30.0, 10.0), (20.0, 10.0)]),
+            vec![LineString::from(vec![
+                (21.0, 1.0),
+                (29.0, 1.0),
+                (29.0, 9.0),
+                (21.0, 9.0),
+            ])],
+        );
+        let pieces = mp(vec![
+            rect(0.0, 0.0, 1.0, 1.0),
+            rect(1.2, 0.0, 2.0, 1.0),
+            rect(0.0, 1.3, 1.0, 2.0),
+            rect(10.0, 10.0, 11.0, 11.0),
+            frame,
+            rect(24.0, 4.0, 26.0, 6.0),
+        ]);
+        assert_eq!(
+            near_another(&pieces, 0.1125),
+            [true, true, false, false, true, true]
+        );
+        // The two within reach join; the rest come back as they were.
+        let joined = joined_across_slits(pieces.clone(), 0.1125);
+        assert_eq!(joined.0.len(), 5);
+        for kept in [2, 3, 4, 5] {
+            assert!(
+                joined.0.contains(&pieces.0[kept]),
+                "piece {kept} kept as it was"
+            );
+        }
+        let both = joined
+            .0
+            .iter()
+            .find(|p| p.contains(&Point::new(1.1, 0.5)))
+            .expect("the two pieces joined across their gap");
+        assert!(
+            (both.unsigned_area() - 2.0).abs() < 0.03,
+            "{}",
+            both.unsigned_area()
+        );
     }
 
     #[test]
