@@ -272,7 +272,9 @@ fn scan_number(input: &[u8]) -> Option<(usize, f64)> {
     let value = if exact {
         // With at most 15 digits both operands are exact in f64 (< 2^53), so the one division
         // is correctly rounded: the same value `str::parse` gives.
-        let v = mantissa as f64 / POW10[frac_digits];
+        // (Through i64, the same value under 2^53: one conversion instruction, where u64
+        // takes a sequence of them on the baseline target.)
+        let v = mantissa as i64 as f64 / POW10[frac_digits];
         if negative {
             -v
         } else {
@@ -355,7 +357,16 @@ pub fn parse_line(content: &[u8]) -> Parsed<'_> {
 
     // Checksum: `*nn` at the end of the code part.
     let mut code = code;
-    if let Some(star) = memchr::memrchr(b'*', code) {
+    // A checksum's `*` lies among the last four bytes before trailing blanks (`*` and one to
+    // three digits): a `*` farther back leaves a longer tail, which is no checksum, so only
+    // those bytes are searched (a search of the whole line cost every line a call).
+    let trimmed = trim_end(code);
+    let near_end = trimmed.len().saturating_sub(4);
+    if let Some(star) = trimmed[near_end..]
+        .iter()
+        .rposition(|&b| b == b'*')
+        .map(|i| near_end + i)
+    {
         let tail = trim_end(&code[star + 1..]);
         if !tail.is_empty() && tail.len() <= 3 && tail.iter().all(|b| b.is_ascii_digit()) {
             if let Ok(v) = std::str::from_utf8(tail).unwrap_or("x").parse::<u16>() {
@@ -502,6 +513,19 @@ mod tests {
         assert_eq!(p.get(b'X'), Some(1.0));
         let bad = parse_line(b"N12 G1 X1*0");
         assert_eq!(bad.checksum_ok, Some(cs == 0));
+        // Trailing blanks and a comment after the checksum; a `*` that is no checksum (four
+        // digits, a word after it, a blank before its digits, two stars) stays in the code.
+        let noted = format!("N12 G1 X1*{cs}  ; note");
+        let p = parse_line(noted.as_bytes());
+        assert_eq!((p.checksum, p.get(b'X')), (Some(cs), Some(1.0)));
+        for text in ["G1 X1*1234", "G1 X1*2 Y3", "G1 X1* 12", "G1 X1*1*"] {
+            let p = parse_line(text.as_bytes());
+            assert_eq!(p.checksum, None, "{text}");
+            assert!(matches!(p.command, Command::Unknown(_)), "{text}");
+        }
+        let p = parse_line(b"G1 X1**12");
+        assert_eq!(p.checksum, Some(12));
+        assert!(matches!(p.command, Command::Unknown(_)));
     }
 
     #[test]
