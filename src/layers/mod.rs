@@ -671,7 +671,10 @@ impl<R: BufRead> LayerReader<R> {
 
 /// Share of a layer's moves with E (by XY length) that may pull filament back outside the
 /// wipes a slicer tags. PrusaSlicer and SuperSlicer pull back while moving only in tagged
-/// wipes (judged once a wipe was tagged), Cura never: 0 % in 626 held-out files by both. A relative-E file read as absolute
+/// wipes (judged once a wipe was tagged), Cura never: 0 % in 626 held-out files by both.
+/// OrcaSlicer, Bambu Studio and Creality Print come from PrusaSlicer's code and tag their
+/// wipes the same way (`;WIPE_START`, Bambu `; WIPE_START`): judged once a wipe was tagged,
+/// as PrusaSlicer is (none of 21 Orca and Bambu files refused). A relative-E file read as absolute
 /// (an M82 slipped in mid-print) pulls back on 40-65 % of each layer's moves, and its layers,
 /// printed in fragments, left every layer above full of false regions (9 mushrooms: 1 738
 /// regions, 22 s and 188 MB). Judged only for those slicers: others wipe untagged, and a
@@ -1359,7 +1362,11 @@ impl State {
             && self.e_backwards.is_none()
             && match self.facts.slicer {
                 // (Versions that wiped without tags are not judged: a wipe was tagged.)
-                Slicer::PrusaSlicer | Slicer::SuperSlicer => self.wipes_tagged,
+                Slicer::PrusaSlicer
+                | Slicer::SuperSlicer
+                | Slicer::OrcaSlicer
+                | Slicer::BambuStudio
+                | Slicer::CrealityPrint => self.wipes_tagged,
                 Slicer::Cura => true,
                 _ => false,
             }

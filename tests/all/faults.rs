@@ -356,6 +356,17 @@ fn an_e_mode_switch_that_does_not_fit_the_e_values_is_refused() {
     );
     let o = survive("as sliced", &read(&sample("circ_overhang_prusa_rel.gcode")));
     assert!(o.status.success());
+    // OrcaSlicer and Bambu Studio tag their wipes as PrusaSlicer does: the same damage in
+    // their dialects is refused too, and the file as sliced goes through.
+    for bambu in [false, true] {
+        let o = survive("M82 mid-print, Orca", &as_orca(damaged.as_bytes(), bambu));
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "bambu {bambu}: {err}");
+        assert!(err.contains("pull filament back"), "bambu {bambu}: {err}");
+        let sliced = as_orca(&read(&sample("circ_overhang_prusa_rel.gcode")), bambu);
+        let o = survive("as sliced, Orca", &sliced);
+        assert!(o.status.success(), "bambu {bambu}");
+    }
 }
 
 /// PrusaSlicer pulls filament back while it wipes, and tags the wipes: a plate of pins, each
