@@ -674,7 +674,8 @@ impl<R: BufRead> LayerReader<R> {
 /// wipes (judged once a wipe was tagged), Cura never: 0 % in 626 held-out files by both.
 /// OrcaSlicer, Bambu Studio and Creality Print come from PrusaSlicer's code and tag their
 /// wipes the same way (`;WIPE_START`, Bambu `; WIPE_START`): judged once a wipe was tagged,
-/// as PrusaSlicer is (none of 21 Orca and Bambu files refused). A relative-E file read as absolute
+/// as PrusaSlicer is (none of 21 Orca and Bambu files refused, among them a real Bambu Studio
+/// print of 137 layers with a prime tower and 125 tool changes). A relative-E file read as absolute
 /// (an M82 slipped in mid-print) pulls back on 40-65 % of each layer's moves, and its layers,
 /// printed in fragments, left every layer above full of false regions (9 mushrooms: 1 738
 /// regions, 22 s and 188 MB). Judged only for those slicers: others wipe untagged, and a
