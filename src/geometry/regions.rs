@@ -432,33 +432,26 @@ fn joined_across_slits(raw: MultiPolygon<f64>, r: f64) -> MultiPolygon<f64> {
 }
 
 /// For each polygon of `mp`, whether its box grown by `r` meets another's (a sweep over the
-/// boxes sorted by their left edge).
+/// boxes sorted by their left edge). A polygon without a box (an empty ring) is left to the
+/// closing to judge, as before.
 fn near_another(mp: &MultiPolygon<f64>, r: f64) -> Vec<bool> {
-    let boxes: Vec<Option<Rect<f64>>> = mp.0.iter().map(|p| p.bounding_rect()).collect();
-    let mut near = vec![false; boxes.len()];
-    let mut order: Vec<usize> = Vec::with_capacity(boxes.len());
-    for (i, b) in boxes.iter().enumerate() {
-        match b {
-            Some(_) => order.push(i),
-            // No box (an empty ring): let the closing judge it, as before.
+    let mut near = vec![false; mp.0.len()];
+    let mut boxes: Vec<(usize, Rect<f64>)> = Vec::with_capacity(mp.0.len());
+    for (i, p) in mp.0.iter().enumerate() {
+        match p.bounding_rect() {
+            Some(b) => boxes.push((i, b)),
             None => near[i] = true,
         }
     }
-    let lo = |i: usize| boxes[i].map_or(f64::NAN, |b| b.min().x - r);
-    let hi = |i: usize| boxes[i].map_or(f64::NAN, |b| b.max().x + r);
-    order.sort_by(|&a, &b| lo(a).total_cmp(&lo(b)));
-    for (k, &i) in order.iter().enumerate() {
-        let (Some(bi), hi_i) = (boxes[i], hi(i)) else {
-            continue;
-        };
-        for &j in &order[k + 1..] {
-            if lo(j) > hi_i {
+    boxes.sort_by(|a, b| a.1.min().x.total_cmp(&b.1.min().x));
+    for (k, (i, bi)) in boxes.iter().enumerate() {
+        for (j, bj) in &boxes[k + 1..] {
+            if bj.min().x - r > bi.max().x + r {
                 break;
             }
-            let Some(bj) = boxes[j] else { continue };
             if bi.min().y - r <= bj.max().y + r && bj.min().y - r <= bi.max().y + r {
-                near[i] = true;
-                near[j] = true;
+                near[*i] = true;
+                near[*j] = true;
             }
         }
     }
