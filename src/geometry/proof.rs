@@ -82,6 +82,18 @@ pub(super) fn dist2(q: [f64; 2], s: &Seg) -> f64 {
     ex * ex + ey * ey
 }
 
+/// The point of the segment's centreline nearest `q`.
+fn closest(q: [f64; 2], s: &Seg) -> [f64; 2] {
+    let (dx, dy) = (s.b[0] - s.a[0], s.b[1] - s.a[1]);
+    let len2 = dx * dx + dy * dy;
+    let t = if len2 > 0.0 {
+        (((q[0] - s.a[0]) * dx + (q[1] - s.a[1]) * dy) / len2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    [s.a[0] + t * dx, s.a[1] + t * dy]
+}
+
 /// Segments bucketed by grid cell (a dense grid over their box, filled by counting): each
 /// segment is cut into pieces no longer than a cell and entered in the cells of each piece's
 /// box.
@@ -247,8 +259,130 @@ pub struct Support {
     widest_external: f64,
     /// Half the widest outline strand (mm).
     widest_half: f64,
-    /// The external loops (closed polylines) with their boxes.
-    loops: Vec<([f64; 4], Vec<[f64; 2]>)>,
+    /// The external loops, in the order of the layer's external perimeters.
+    loops: Vec<Loop>,
+}
+
+/// An external perimeter as a closed polyline.
+#[derive(Debug)]
+struct Loop {
+    bbox: [f64; 4],
+    pts: Vec<[f64; 2]>,
+    /// Half its width (mm).
+    half: f64,
+    /// It lies inside another loop: it walls a hole of the part, whose material is outside
+    /// it ([`nesting`]).
+    hole: bool,
+}
+
+impl Loop {
+    /// Whether `q` lies inside the loop (even-odd rule on the polyline, closed).
+    fn contains(&self, q: [f64; 2]) -> bool {
+        let b = &self.bbox;
+        if q[0] < b[0] || q[0] > b[2] || q[1] < b[1] || q[1] > b[3] {
+            return false;
+        }
+        let pts = &self.pts;
+        let mut inside = false;
+        let n = pts.len();
+        for i in 0..n {
+            let (a, c) = (pts[i], pts[(i + 1) % n]);
+            if (a[1] > q[1]) != (c[1] > q[1]) {
+                let x = a[0] + (q[1] - a[1]) / (c[1] - a[1]) * (c[0] - a[0]);
+                if x > q[0] {
+                    inside = !inside;
+                }
+            }
+        }
+        inside
+    }
+
+    /// Twice the signed area of the polygon the loop closes (positive counter-clockwise).
+    fn signed_area2(&self) -> f64 {
+        let n = self.pts.len();
+        (0..n)
+            .map(|i| {
+                let (a, c) = (self.pts[i], self.pts[(i + 1) % n]);
+                a[0] * c[1] - c[0] * a[1]
+            })
+            .sum()
+    }
+
+    /// The centroid of the polygon the loop closes (`None` when it has no area).
+    fn centroid(&self) -> Option<[f64; 2]> {
+        let n = self.pts.len();
+        let (mut a2, mut cx, mut cy) = (0.0, 0.0, 0.0);
+        for i in 0..n {
+            let (p, q) = (self.pts[i], self.pts[(i + 1) % n]);
+            let cross = p[0] * q[1] - q[0] * p[1];
+            a2 += cross;
+            cx += (p[0] + q[0]) * cross;
+            cy += (p[1] + q[1]) * cross;
+        }
+        let c = [cx / (3.0 * a2), cy / (3.0 * a2)];
+        (a2.abs() > 1e-9 && c[0].is_finite() && c[1].is_finite()).then_some(c)
+    }
+
+    /// Distance from `q` to the loop's centreline.
+    fn distance(&self, q: [f64; 2]) -> f64 {
+        let n = self.pts.len();
+        (0..n)
+            .map(|i| {
+                let (a, b) = (self.pts[i], self.pts[(i + 1) % n]);
+                dist2(
+                    q,
+                    &Seg {
+                        a,
+                        b,
+                        half: 0.0,
+                        role: Role::ExternalPerimeter,
+                        loop_at: None,
+                    },
+                )
+            })
+            .fold(f64::INFINITY, f64::min)
+            .sqrt()
+    }
+}
+
+/// Marks the loops that lie inside another ([`Loop::hole`]); `false` when a loop lies
+/// inside two (a post in a part's hole: the proof leaves it to the exact path). Loops far
+/// apart (as [`Support::approach`] then checks) are nested when one's box holds the
+/// other's and one point of the other lies inside it.
+fn nesting(loops: &mut [Loop]) -> bool {
+    let mut order: Vec<usize> = (0..loops.len()).collect();
+    order.sort_unstable_by(|&a, &b| loops[a].bbox[0].total_cmp(&loops[b].bbox[0]));
+    let mut depth = vec![0u8; loops.len()];
+    let holds = |o: &Loop, i: &Loop| {
+        o.bbox[0] <= i.bbox[0]
+            && o.bbox[1] <= i.bbox[1]
+            && o.bbox[2] >= i.bbox[2]
+            && o.bbox[3] >= i.bbox[3]
+            && i.pts.first().is_some_and(|&q| o.contains(q))
+    };
+    for (k, &i) in order.iter().enumerate() {
+        for &j in &order[k + 1..] {
+            let (a, b) = (&loops[i], &loops[j]);
+            if b.bbox[0] > a.bbox[2] {
+                break;
+            }
+            if b.bbox[1] > a.bbox[3] || a.bbox[1] > b.bbox[3] {
+                continue;
+            }
+            if holds(a, b) {
+                depth[j] += 1;
+            } else if holds(b, a) {
+                depth[i] += 1;
+            }
+        }
+    }
+    if depth.iter().any(|&d| d > 1) {
+        return false;
+    }
+    for (l, d) in loops.iter_mut().zip(depth) {
+        l.hole = d == 1;
+    }
+    true
 }
 
 impl Support {
@@ -266,7 +400,6 @@ impl Support {
         let mut segs = Vec::new();
         let mut loops = 0u32;
         let mut loops_ok = true;
-        let mut boxes: Vec<[f64; 4]> = Vec::new();
         let mut loop_polys = Vec::new();
         for (p, join) in outline {
             let finite = p.points.iter().all(|q| {
@@ -282,9 +415,12 @@ impl Support {
                 if !closed(p) {
                     loops_ok = false;
                 }
-                let b = points_box(&p.points);
-                boxes.push(b);
-                loop_polys.push((b, p.points.clone()));
+                loop_polys.push(Loop {
+                    bbox: points_box(&p.points),
+                    pts: p.points.clone(),
+                    half: p.width / 2.0,
+                    hole: false,
+                });
                 id
             });
             let mut s_at = 0.0;
@@ -317,14 +453,14 @@ impl Support {
             widest_half,
             loops: loop_polys,
         };
-        if loops_ok && boxes_apart(&mut boxes) {
+        if loops_ok && nesting(&mut sup.loops) {
             // Both searches read the outline's grid and skip the strands they do not want:
             // building a grid of each kind cost more than the skipping.
-            sup.flank_gap = Support::flanks(layer, &sup.grid);
+            sup.flank_gap = Support::flanks(&sup.loops, &sup.grid);
             let loop_len: Vec<f64> = sup
                 .loops
                 .iter()
-                .map(|(_, pts)| super::polyline_length(pts))
+                .map(|l| super::polyline_length(&l.pts))
                 .collect();
             sup.approach = Support::closest_approach(&sup.grid, &loop_len);
         }
@@ -332,26 +468,36 @@ impl Support {
     }
 
     /// The widest gap between an external perimeter and the inner perimeter beside it, if
-    /// every piece of every external loop has one farther than the wall zone (`w_e / 2 + 0.1`
-    /// from its centerline, [`super::area`]'s walled test) reaches. Sampled every
-    /// [`FLANK_STEP`]: a point between samples is at most half a step from one, so the gap
-    /// grows and the reach shrinks by that much.
-    fn flanks(layer: &Layer, outline: &Grid) -> Option<f64> {
+    /// every piece of every external loop has one on its material side (inside a part's
+    /// outer loop, outside a hole's) farther than the wall zone (`w_e / 2 + 0.1` from its
+    /// centerline, [`super::area`]'s walled test) reaches. Sampled every [`FLANK_STEP`]: a
+    /// point between samples is at most half a step from one, so the gap grows and the reach
+    /// shrinks by that much. The side matters: a loop whose inner perimeter runs outside it
+    /// walls an empty inside, a hole of the area below that a roof above would close.
+    fn flanks(loops: &[Loop], outline: &Grid) -> Option<f64> {
         let mut widest = 0.0f64;
-        for p in layer
-            .paths
-            .iter()
-            .filter(|p| p.role == Role::ExternalPerimeter)
-        {
-            let he = p.width / 2.0;
+        for l in loops {
+            let he = l.half;
+            // Material lies left of the way the loop runs when it runs counter-clockwise
+            // round a part or clockwise round a hole.
+            let side = if (l.signed_area2() > 0.0) != l.hole {
+                1.0
+            } else {
+                -1.0
+            };
             let mut last: Option<usize> = None;
-            for w in p.points.windows(2) {
+            for w in l.pts.windows(2) {
+                let normal = [-(w[1][1] - w[0][1]) * side, (w[1][0] - w[0][0]) * side];
                 for q in samples_every(w[0], w[1], FLANK_STEP) {
                     let gap = |s: &Seg| {
                         if s.role != Role::Perimeter {
                             return None;
                         }
-                        let d = dist2(q, s).sqrt();
+                        let c = closest(q, s);
+                        if (c[0] - q[0]) * normal[0] + (c[1] - q[1]) * normal[1] < 0.0 {
+                            return None;
+                        }
+                        let d = ((c[0] - q[0]).powi(2) + (c[1] - q[1]).powi(2)).sqrt();
                         (d + s.half - FLANK_STEP / 2.0 > he + 0.11)
                             .then(|| d - he - s.half + FLANK_STEP / 2.0)
                     };
@@ -393,25 +539,10 @@ impl Support {
         Some(widest)
     }
 
-    /// Whether `q` lies inside one of the external loops (even-odd rule on the polyline).
-    fn inside_loop(&self, q: [f64; 2]) -> bool {
-        self.loops.iter().any(|(b, pts)| {
-            if q[0] < b[0] || q[0] > b[2] || q[1] < b[1] || q[1] > b[3] {
-                return false;
-            }
-            let mut inside = false;
-            let n = pts.len();
-            for i in 0..n {
-                let (a, c) = (pts[i], pts[(i + 1) % n]);
-                if (a[1] > q[1]) != (c[1] > q[1]) {
-                    let x = a[0] + (q[1] - a[1]) / (c[1] - a[1]) * (c[0] - a[0]);
-                    if x > q[0] {
-                        inside = !inside;
-                    }
-                }
-            }
-            inside
-        })
+    /// Whether `q` lies in a part: inside an odd number of external loops (inside a part's
+    /// outer loop and none of its holes').
+    fn in_material(&self, q: [f64; 2]) -> bool {
+        self.loops.iter().filter(|l| l.contains(q)).count() % 2 == 1
     }
 
     /// See [`Support::approach`]: exact segment-to-segment distances between the external
@@ -522,22 +653,6 @@ fn points_box(points: &[[f64; 2]]) -> [f64; 4] {
     )
 }
 
-/// Whether no two boxes meet (a loop inside another's box may be a hole of it).
-fn boxes_apart(boxes: &mut [[f64; 4]]) -> bool {
-    boxes.sort_unstable_by(|a, b| a[0].total_cmp(&b[0]));
-    for i in 0..boxes.len() {
-        for j in i + 1..boxes.len() {
-            if boxes[j][0] > boxes[i][2] {
-                break;
-            }
-            if boxes[j][1] <= boxes[i][3] && boxes[i][1] <= boxes[j][3] {
-                return false;
-            }
-        }
-    }
-    true
-}
-
 /// Whether `layer` is certain to have no region over the layer below (see the module doc).
 /// `below` and `here` are the [`Support`]s of the layer below and of `layer`.
 pub fn supported(below: &Support, layer: &Layer, here: &Support, opts: &DetectOptions) -> bool {
@@ -571,6 +686,10 @@ pub fn why_not(
     let reach = below.widest_external + 2.0 * tol + 0.05;
     if reach >= CELL || below.approach <= reach {
         return Some(format!("below: loops {:.3} mm apart", below.approach));
+    }
+    // 4. Every hole of the area below stays a hole of this layer's area.
+    if let Some(why) = holes_kept(below, layer, here, opts, tol) {
+        return Some(why);
     }
     // 1. The outline lies within the tolerance of the outline below.
     let under = &below.grid.segs;
@@ -633,7 +752,7 @@ pub fn why_not(
             let inside = here.grid.any_near(q, CELL, |t| {
                 let r = t.half * (1.0 - ARC_SHARE) - 0.002;
                 r > 0.0 && dist2(q, t) <= r * r
-            }) || (here_flanked && here.inside_loop(q));
+            }) || (here_flanked && here.in_material(q));
             if !inside {
                 return Some(format!(
                     "infill point {:.3},{:.3} off the outline",
@@ -643,6 +762,221 @@ pub fn why_not(
         }
     }
     None
+}
+
+/// How far (mm) another strand's footprint may reach past a hole's wall into the hole, more
+/// than half the wall's width: what a strand that ends on the wall (the join from the inner
+/// perimeter to the loop's start) adds to the chords of the two footprints there.
+const BAND_SLACK: f64 = 1e-3;
+
+/// Least minimum width (mm) for the hole rule: wider than those slivers.
+const MIN_WIDTH_HOLES: f64 = 0.01;
+
+/// `None` when every hole of the area below (the inside of a hole's loop there, shrunk by
+/// the wall and the tolerance: `K`) lies in a hole of this layer's area that the area
+/// model keeps open, else where one does not. A hole's loop `H` of this layer keeps `K`
+/// open when
+/// - a point `x` lies inside both loops, more than `min_hole / 2` inside `K` and inside
+///   `H`'s hole past the band its bead covers (`w / 2`, and [`BAND_SLACK`]);
+/// - `H` runs within the tolerance of the loop below everywhere, so it never enters `K`:
+///   `K`, connected (the loops below are far from themselves, [`Support::approach`]), lies
+///   inside `H` with `x`;
+/// - nothing of this layer lies in `H`'s hole but in that band: no interior strand's
+///   segment midpoint (the area model's evidence of infill) and no footprint of another
+///   outline strand farther in. Then the hole of the area round `x` is walled all along by
+///   `H`, holds a disc of `min_hole` round `x` and no infill: it stays open
+///   ([`super::area`]'s rule), and whatever of `K` is not covered by this layer's outline
+///   (rule 1 keeps it out of the grown area below) lies in it.
+///
+/// The residue: pieces of `K` cut off in a notch of either loop (as rule 3's), and slivers
+/// between the chords of two beads' arcs in the band (thousandths of a millimetre wide,
+/// below the minimum width the proof asks for).
+fn holes_kept(
+    below: &Support,
+    layer: &Layer,
+    here: &Support,
+    opts: &DetectOptions,
+    tol: f64,
+) -> Option<String> {
+    let min_hole = opts.area.min_hole;
+    let mut clear: Vec<Option<bool>> = Vec::new();
+    let mut mids: Option<Vec<[f64; 2]>> = None;
+    for (id, lb) in below.loops.iter().enumerate().filter(|(_, l)| l.hole) {
+        // No point of the inside lies farther from the loop than half its box's narrower
+        // side: nothing of the hole is left once the tolerance has grown the wall.
+        let r_b = lb.half * (1.0 - ARC_SHARE) + tol - OFFSET_SLACK;
+        let side = (lb.bbox[2] - lb.bbox[0]).min(lb.bbox[3] - lb.bbox[1]);
+        if side <= 2.0 * r_b {
+            continue;
+        }
+        // The disc round `x` must not fit in a notch.
+        if std::f64::consts::FRAC_PI_4 * min_hole * min_hole <= NOTCH_AREA {
+            return Some("minimum hole too small to tell a hole from a notch".into());
+        }
+        let kept = here.flank_gap.is_some()
+            && here.loops.iter().enumerate().any(|(k, lh)| {
+                let band = lh.half + BAND_SLACK;
+                if !lh.hole
+                    || here.approach <= 2.0 * band
+                    || opts.min_width() < MIN_WIDTH_HOLES
+                    || !boxes_meet(&lh.bbox, &lb.bbox)
+                {
+                    return false;
+                }
+                let deep = |x: [f64; 2]| {
+                    lb.contains(x)
+                        && lh.contains(x)
+                        && lb.distance(x) > r_b + min_hole / 2.0
+                        && lh.distance(x) > band + min_hole / 2.0 + 0.01
+                };
+                if !lh.centroid().into_iter().chain(lb.centroid()).any(deep) {
+                    return false;
+                }
+                if !follows(lh, &below.grid, id as u32, r_b - STEP / 2.0) {
+                    return false;
+                }
+                if clear.is_empty() {
+                    clear = vec![None; here.loops.len()];
+                }
+                let mids = mids.get_or_insert_with(|| interior_midpoints(layer));
+                *clear[k].get_or_insert_with(|| hole_clear(mids, here, k))
+            });
+        if !kept {
+            let at = lb.pts.first().copied().unwrap_or_default();
+            return Some(format!(
+                "below: hole at {:.3},{:.3} not kept open",
+                at[0], at[1]
+            ));
+        }
+    }
+    None
+}
+
+fn boxes_meet(a: &[f64; 4], b: &[f64; 4]) -> bool {
+    a[0] <= b[2] && b[0] <= a[2] && a[1] <= b[3] && b[1] <= a[3]
+}
+
+/// Whether every point of `l`'s centreline lies within `r` of loop `id` of `below`'s grid.
+fn follows(l: &Loop, below: &Grid, id: u32, r: f64) -> bool {
+    if r <= 0.0 {
+        return false;
+    }
+    let n = l.pts.len();
+    let mut last: Option<usize> = None;
+    (0..n).all(|i| {
+        let (a, b) = (l.pts[i], l.pts[(i + 1) % n]);
+        let near = |q: [f64; 2], t: &Seg| {
+            t.loop_at.is_some_and(|(tid, _)| tid == id) && dist2(q, t) <= r * r
+        };
+        for q in samples(a, b) {
+            let mut found = last.filter(|&k| below.segs.get(k).is_some_and(|t| near(q, t)));
+            if found.is_none() {
+                below.any_near_at(q, r, |k, t| {
+                    let ok = near(q, t);
+                    if ok {
+                        found = Some(k);
+                    }
+                    ok
+                });
+            }
+            match found {
+                // Convex along the segment: one strand covering both ends covers it all.
+                Some(k) if near(b, &below.segs[k]) => {
+                    last = Some(k);
+                    return true;
+                }
+                Some(k) => last = Some(k),
+                None => return false,
+            }
+        }
+        true
+    })
+}
+
+/// The midpoints of the segments of `layer`'s interior strands, sorted by x.
+fn interior_midpoints(layer: &Layer) -> Vec<[f64; 2]> {
+    let mut v: Vec<[f64; 2]> = layer
+        .paths
+        .iter()
+        .filter(|p| interior(p.role))
+        .flat_map(|p| p.points.windows(2).map(|w| lerp(w[0], w[1], 0.5)))
+        .collect();
+    v.sort_unstable_by(|a, b| a[0].total_cmp(&b[0]));
+    v
+}
+
+/// Whether nothing of `layer` but loop `k` of `here` lies inside it, but what its own bead
+/// covers: no midpoint of an interior strand's segment (`mids`: [`interior_midpoints`]),
+/// and no footprint of another outline strand reaching farther than half the loop's width
+/// (and [`BAND_SLACK`]) past its centreline, nor crossing it.
+fn hole_clear(mids: &[[f64; 2]], here: &Support, k: usize) -> bool {
+    let h = &here.loops[k];
+    let in_box = |q: [f64; 2], m: f64| {
+        q[0] >= h.bbox[0] - m
+            && q[0] <= h.bbox[2] + m
+            && q[1] >= h.bbox[1] - m
+            && q[1] <= h.bbox[3] + m
+    };
+    // The area model closes a hole holding a midpoint of an interior strand's segment.
+    let from = mids.partition_point(|q| q[0] < h.bbox[0]);
+    let to = mids.partition_point(|q| q[0] <= h.bbox[2]).max(from);
+    if mids[from..to]
+        .iter()
+        .any(|&q| in_box(q, 0.0) && h.contains(q))
+    {
+        return false;
+    }
+    let own = |t: &Seg| t.loop_at.is_some_and(|(id, _)| id as usize == k);
+    // The join that closes the loop's seam ([`wall_joins`]) is the polygon's closing side.
+    let seam = (h.pts.last().copied(), h.pts.first().copied());
+    let closes = |t: &Seg| (Some(t.a), Some(t.b)) == seam;
+    // The outline strands near the loop's box, from the grid's cells round it.
+    let reach = here.widest_half + h.half + BAND_SLACK;
+    let centre = [(h.bbox[0] + h.bbox[2]) / 2.0, (h.bbox[1] + h.bbox[3]) / 2.0];
+    let half_side = ((h.bbox[2] - h.bbox[0]) / 2.0).max((h.bbox[3] - h.bbox[1]) / 2.0);
+    let mut near: Vec<usize> = Vec::new();
+    here.grid.any_near_at(centre, half_side + reach, |i, _| {
+        near.push(i);
+        false
+    });
+    near.sort_unstable();
+    near.dedup();
+    near.into_iter().all(|i| {
+        let s = &here.grid.segs[i];
+        let m = s.half + h.half + BAND_SLACK;
+        if own(s)
+            || closes(s)
+            || !(in_box(s.a, m)
+                || in_box(s.b, m)
+                || in_box(lerp(s.a, s.b, 0.5), m + seg_len(s) / 2.0))
+        {
+            return true;
+        }
+        // A strand that ends on the loop (a join to its start) touches it: its ends are
+        // pulled in by a ten-thousandth so that touching is not crossing.
+        let len = seg_len(s);
+        let cut = if len > 1e-3 { 1e-4 / len } else { 0.0 };
+        let t = Seg {
+            a: lerp(s.a, s.b, cut),
+            b: lerp(s.a, s.b, 1.0 - cut),
+            ..*s
+        };
+        if [t.a, t.b].iter().any(|&q| h.contains(q)) {
+            return false;
+        }
+        let mut nearest = f64::INFINITY;
+        let crossed = here.grid.any_near(lerp(t.a, t.b, 0.5), len / 2.0 + m, |u| {
+            if !own(u) {
+                return false;
+            }
+            if segments_cross(t.a, t.b, u.a, u.b) {
+                return true;
+            }
+            nearest = nearest.min(seg_dist(&t, u));
+            false
+        });
+        !crossed && s.half - nearest <= h.half + BAND_SLACK - 1e-4
+    })
 }
 
 #[cfg(test)]
@@ -741,14 +1075,104 @@ mod tests {
         assert!(why.is_some_and(|w| w.contains("flanked")));
     }
 
+    /// A 10 x 10 part round a square hole of half side `hole` (both walled by two
+    /// perimeters), with infill rows on either side of the hole when `infill`.
+    fn tube(hole: f64, infill: bool) -> Vec<Path> {
+        let mut v = part(5.0, 2, false);
+        v.push(path(Role::ExternalPerimeter, &square(10.0, hole)));
+        v.push(path(Role::Perimeter, &square(10.0, hole + 0.43)));
+        if infill {
+            let (inner, edge) = (5.0 - 0.86, hole + 0.86);
+            let mut y: f64 = 10.0 - inner + 0.5;
+            while y < 10.0 + inner {
+                if (y - 10.0).abs() < edge {
+                    v.push(path(Role::Infill, &[[10.0 - inner, y], [10.0 - edge, y]]));
+                    v.push(path(Role::Infill, &[[10.0 + edge, y], [10.0 + inner, y]]));
+                } else {
+                    v.push(path(Role::Infill, &[[10.0 - inner, y], [10.0 + inner, y]]));
+                }
+                y += 1.0;
+            }
+        }
+        v
+    }
+
     #[test]
-    fn a_loop_inside_another_is_left_to_the_exact_path() {
-        // A tube: the inner external loop walls a real hole.
-        let mut tube = part(5.0, 2, false);
-        tube.push(path(Role::ExternalPerimeter, &square(10.0, 2.0)));
-        tube.push(path(Role::Perimeter, &square(10.0, 2.43)));
-        let why = verdict(tube.clone(), tube);
-        assert!(why.is_some_and(|w| w.contains("nested")));
+    fn a_hole_rising_straight_is_proven() {
+        assert_eq!(verdict(tube(2.0, true), tube(2.0, true)), None);
+        assert_eq!(verdict(tube(2.0, false), tube(2.0, false)), None);
+        // Widening by less than the tolerance: the wall still rests on the one below.
+        assert_eq!(verdict(tube(2.0, true), tube(2.1, true)), None);
+    }
+
+    #[test]
+    fn a_roof_over_a_hole_is_left_to_the_exact_path() {
+        let mut roofed = tube(2.0, true);
+        for k in 0..9 {
+            let y = 8.2 + 0.45 * k as f64;
+            roofed.push(path(Role::SolidInfill, &[[7.8, y], [12.2, y]]));
+        }
+        let why = verdict(tube(2.0, true), roofed);
+        assert!(why.is_some_and(|w| w.contains("not kept open")));
+        // A roof strand bent into the hole, its three sampled points on the wall.
+        let mut bent = tube(2.0, true);
+        bent.push(path(
+            Role::SolidInfill,
+            &[
+                [8.0, 8.0],
+                [9.0, 9.5],
+                [10.0, 8.0],
+                [11.0, 9.5],
+                [12.0, 8.0],
+            ],
+        ));
+        let why = verdict(tube(2.0, true), bent);
+        assert!(why.is_some_and(|w| w.contains("not kept open")));
+    }
+
+    #[test]
+    fn a_hole_closing_in_is_left_to_the_exact_path() {
+        // Narrowed by 0.3 mm a side: more than the tolerance, an overhang inside the hole.
+        assert!(verdict(tube(2.0, true), tube(1.7, true)).is_some());
+        // A wall strand of this layer inside the hole (a post starting there).
+        let mut post = tube(2.0, true);
+        post.push(path(Role::Perimeter, &square(10.0, 0.5)));
+        let why = verdict(tube(2.0, true), post);
+        assert!(why.is_some_and(|w| w.contains("not kept open")));
+    }
+
+    #[test]
+    fn a_post_in_a_hole_is_left_to_the_exact_path() {
+        let mut ring = tube(3.0, false);
+        ring.push(path(Role::ExternalPerimeter, &square(10.0, 1.0)));
+        ring.push(path(Role::Perimeter, &square(10.0, 0.57)));
+        let why = verdict(ring.clone(), ring);
+        assert!(
+            why.as_ref().is_some_and(|w| w.contains("nested")),
+            "{why:?}"
+        );
+    }
+
+    #[test]
+    fn a_wall_flanked_on_its_open_side_is_left_to_the_exact_path() {
+        // The inner perimeter runs outside the external one: the loop's inside is empty, a
+        // hole of the area below, and a roof over it is over air.
+        let walls = vec![
+            path(Role::ExternalPerimeter, &square(10.0, 5.0)),
+            path(Role::Perimeter, &square(10.0, 5.43)),
+        ];
+        let mut roof = walls.clone();
+        for k in 0..21 {
+            let y = 5.5 + 0.45 * k as f64;
+            roof.push(path(Role::SolidInfill, &[[5.0, y], [15.0, y]]));
+        }
+        let (b, h) = (layer(4, walls.clone()), layer(5, roof.clone()));
+        let opts = DetectOptions::default();
+        let (ab, ah) = (printed_area(&b, &opts.area), printed_area(&h, &opts.area));
+        assert_eq!(find_regions(&ab, &h, &ah, &opts).len(), 1);
+        // The perimeter outside does not flank it: none within reach inside.
+        let why = verdict(walls, roof);
+        assert!(why.as_ref().is_some_and(|w| w.contains("gap")), "{why:?}");
     }
 
     #[test]

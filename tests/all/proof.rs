@@ -85,7 +85,7 @@ fn the_proof_changes_no_region_of_any_sample() {
     assert!(spared > 100, "the proof spared only {spared} layers");
 }
 
-const PARTS: [&str; 11] = [
+const PARTS: [&str; 12] = [
     "rect_overhang",
     "circ_overhang",
     "tri_overhang",
@@ -93,6 +93,7 @@ const PARTS: [&str; 11] = [
     "arms60",
     "box_roof_window",
     "frustums",
+    "holes_mixed",
     "hook",
     "mushroom",
     "shelves_hole",
@@ -155,4 +156,23 @@ fn a_roof_over_a_single_walled_box_is_found_with_the_proof_on() {
     let (found, spared) = regions(&data, true);
     assert_eq!(spared, 0);
     assert_eq!(found.len(), 1, "{found:?}");
+}
+
+#[test]
+fn layers_over_holes_rising_straight_are_proven() {
+    // Through-holes, a blind hole roofed half way up, holes narrowing and widening, a slot.
+    let Some(data) = slice("holes_mixed", &[]) else {
+        return;
+    };
+    let spared = same_both_ways(&data, "holes_mixed");
+    let layers = String::from_utf8_lossy(&data)
+        .lines()
+        .filter(|l| l.starts_with(";LAYER_CHANGE"))
+        .count();
+    // Of 80 layers, all but those where a hole changes (the cones every layer, the roof)
+    // and the one after each.
+    assert!(spared * 2 > layers, "spared {spared} of {layers} layers");
+    // The roof over the blind hole is over air, found with the proof on.
+    let (found, _) = regions(&data, true);
+    assert!(!found.is_empty());
 }
