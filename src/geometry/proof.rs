@@ -11,16 +11,22 @@
 //! below grown by the tolerance. The proof shows A lies inside G:
 //! 1. F lies inside G: every outline strand of the layer, sampled every [`STEP`], lies within
 //!    `tolerance + (w_below - w) / 2` of an outline strand below, less the polygon error of
-//!    the arcs and half a sample step (so the whole bead between samples is covered).
+//!    the arcs and half a sample step (so the whole bead between samples is covered); a
+//!    segment that fails so is sampled again every [`FINE_STEP`] before the layer fails.
 //! 2. No stray footprints: every interior strand (infill) starts, ends and has its middle point
 //!    on an outline strand of its own layer, so it lies inside the layer's area and adds
 //!    nothing.
-//! 3. G has no holes, so every hole the layer closes lies inside G with the outline around it:
-//!    below, every external perimeter is a closed loop, loops are far apart from each other
-//!    and from themselves (no two loops' boxes meet, no loop comes back within reach of itself
-//!    farther along), and an inner perimeter runs beside every external one within a gap no
-//!    hole of `min_hole` fits in, so no hole of the area below is walled by an external
-//!    perimeter (the only holes left open), and growing it closes none.
+//! 3. G has holes only inside the loops that wall the part's holes: below, every external
+//!    perimeter is a closed loop, inside at most one other (a hole's wall in a part's
+//!    outline; a post standing in a hole is left to the exact path), loops are far apart from
+//!    each other and from themselves (no loop comes back within reach of itself farther
+//!    along), and an inner perimeter runs beside every external one on its material side
+//!    (inside an outline, outside a hole's wall) within a gap no hole of `min_hole` fits in,
+//!    so no hole of the area below is walled by an external perimeter but the part's holes
+//!    (the only holes left open), and growing it closes none.
+//! 4. Every hole of G lies in a hole of this layer's area that stays open: a loop of this
+//!    layer follows the hole's wall below within the tolerance, nothing is printed inside it
+//!    and a disc of `min_hole` fits in it ([`holes_kept`]).
 //!
 //! Layers whose roles do not tell walls from infill, with support material or overhang
 //! perimeters, are left to the exact path. The residue: a notch in a wall narrower than the
@@ -728,6 +734,10 @@ pub fn why_not(
                     break;
                 }
                 Some(k) => last = Some(k),
+                // A wall that wobbles between layers by nearly the tolerance fails the
+                // coarse samples' slack: its segment is sampled finely before the layer
+                // goes to the exact path.
+                None if covered_finely(below, s, tol) => break,
                 None => {
                     return Some(format!(
                         "outline at {:.3},{:.3} off the outline below",
@@ -762,6 +772,22 @@ pub fn why_not(
         }
     }
     None
+}
+
+/// Sample spacing (mm) of [`covered_finely`].
+const FINE_STEP: f64 = 0.01;
+
+/// Rule 1 for one segment of this layer's outline, sampled every [`FINE_STEP`] (the slack
+/// for the bead between samples shrinks with it) and each sample tried on every strand
+/// below within reach.
+fn covered_finely(below: &Support, s: &Seg, tol: f64) -> bool {
+    let base = tol - OFFSET_SLACK - FINE_STEP / 2.0 - s.half;
+    samples_every(s.a, s.b, FINE_STEP).all(|q| {
+        below.grid.any_near(q, tol + below.widest_half, |t| {
+            let need = base + t.half * (1.0 - ARC_SHARE);
+            need > 0.0 && dist2(q, t) <= need * need
+        })
+    })
 }
 
 /// How far (mm) another strand's footprint may reach past a hole's wall into the hole, more
