@@ -1167,6 +1167,98 @@ mod tests {
         assert!(why.is_some_and(|w| w.contains("not kept open")));
     }
 
+    /// A 12 x 12 part round a polygonal hole of radius `r` centred at `c` (`n` sides, turned
+    /// by `phase`, run backwards when `reverse`), walls and infill as a slicer lays them, and
+    /// `extra`: 1 a roof over the hole, 2 a wall inside it, 3 one infill line across it.
+    fn holed(c: [f64; 2], r: f64, n: usize, phase: f64, reverse: bool, extra: u32) -> Vec<Path> {
+        let ring = |r: f64| -> Vec<[f64; 2]> {
+            let mut v: Vec<[f64; 2]> = (0..=n)
+                .map(|k| {
+                    let a = phase + std::f64::consts::TAU * (k % n) as f64 / n as f64;
+                    [c[0] + r * a.cos(), c[1] + r * a.sin()]
+                })
+                .collect();
+            if reverse {
+                v.reverse();
+            }
+            v
+        };
+        let mut v = part(6.0, 2, false);
+        v.push(path(Role::ExternalPerimeter, &ring(r)));
+        v.push(path(Role::Perimeter, &ring(r + 0.43)));
+        let (lo, hi, edge) = (10.0 - 5.14, 10.0 + 5.14, r + 0.86);
+        let mut y: f64 = lo + 0.5;
+        while y < hi {
+            let dy = y - c[1];
+            if dy.abs() < edge {
+                let dx = (edge * edge - dy * dy).sqrt();
+                for (a, b) in [(lo, c[0] - dx), (c[0] + dx, hi)] {
+                    if b > a {
+                        v.push(path(Role::Infill, &[[a, y], [b, y]]));
+                    }
+                }
+            } else {
+                v.push(path(Role::Infill, &[[lo, y], [hi, y]]));
+            }
+            y += 1.0;
+        }
+        match extra {
+            1 => {
+                let mut y = c[1] - r;
+                while y < c[1] + r {
+                    v.push(path(Role::SolidInfill, &[[c[0] - r, y], [c[0] + r, y]]));
+                    y += 0.45;
+                }
+            }
+            2 => v.push(path(Role::Perimeter, &ring(r * 0.5))),
+            3 => v.push(path(
+                Role::Infill,
+                &[[c[0] - r - 0.43, c[1]], [c[0] + r + 0.43, c[1]]],
+            )),
+            _ => {}
+        }
+        v
+    }
+
+    #[test]
+    fn random_holes_never_hide_a_region_from_the_proof() {
+        // `verdict` asserts that the exact path finds nothing wherever the proof holds.
+        let mut seed = 0x2545_f491_4f6c_dd1du64;
+        let mut rand = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut proven = 0;
+        for _ in 0..1000 {
+            let n = 6 + (rand() * 40.0) as usize;
+            let (r, phase) = (0.6 + rand() * 3.4, rand());
+            let below = holed([10.0, 10.0], r, n, phase, rand() < 0.5, 0);
+            // The hole above: as below, or moved, grown, shrunk, turned, roofed, walled in.
+            let change = rand();
+            let (mut c, mut rh, mut ph) = ([10.0, 10.0], r, phase);
+            if change < 0.3 {
+                c = [10.0 + (rand() - 0.5) * 0.6, 10.0 + (rand() - 0.5) * 0.6];
+            } else if change < 0.6 {
+                rh = (r + (rand() - 0.5) * 0.8).max(0.3);
+            } else if change < 0.7 {
+                ph = rand();
+            }
+            let extra = if rand() < 0.3 {
+                1 + (rand() * 3.0) as u32
+            } else {
+                0
+            };
+            let here = holed(c, rh, n, ph, rand() < 0.5, extra);
+            if verdict(below, here).is_none() {
+                proven += 1;
+            }
+        }
+        // Enough cases proven for the check to mean something.
+        assert!(proven > 200, "{proven}");
+    }
+
     #[test]
     fn a_post_in_a_hole_is_left_to_the_exact_path() {
         let mut ring = tube(3.0, false);
