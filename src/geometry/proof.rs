@@ -559,10 +559,19 @@ impl Support {
             let Some((id, at)) = s.loop_at else { continue };
             let slen = seg_len(s);
             let mid = lerp(s.a, s.b, 0.5);
+            let sb = seg_box(s);
             outline.any_near(mid, slen / 2.0 + closest, |t| {
                 let Some((tid, tat)) = t.loop_at else {
                     return false;
                 };
+                // The boxes' gap bounds the distance from below: most strands the grid's
+                // cells hold lie farther than the closest approach found.
+                let tb = seg_box(t);
+                let gx = (sb[0].max(tb[0]) - sb[2].min(tb[2])).max(0.0);
+                let gy = (sb[1].max(tb[1]) - sb[3].min(tb[3])).max(0.0);
+                if gx * gx + gy * gy >= closest * closest {
+                    return false;
+                }
                 if tid == id {
                     let total = loop_len.get(id as usize).copied().unwrap_or(0.0);
                     if arc_gap(at, at + slen, tat, tat + seg_len(t), total) <= LOOP_ARC {
@@ -575,6 +584,15 @@ impl Support {
         }
         closest
     }
+}
+
+fn seg_box(s: &Seg) -> [f64; 4] {
+    [
+        s.a[0].min(s.b[0]),
+        s.a[1].min(s.b[1]),
+        s.a[0].max(s.b[0]),
+        s.a[1].max(s.b[1]),
+    ]
 }
 
 fn seg_len(s: &Seg) -> f64 {
