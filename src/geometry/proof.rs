@@ -269,6 +269,9 @@ pub struct Support {
     loops: Vec<Loop>,
 }
 
+/// Pairs of meeting boxes [`nesting`] examines per loop at most.
+const PAIRS_PER_LOOP: usize = 16;
+
 /// An external perimeter as a closed polyline.
 #[derive(Debug)]
 struct Loop {
@@ -352,10 +355,13 @@ impl Loop {
 }
 
 /// Marks the loops that lie inside another ([`Loop::hole`]); `false` when a loop lies
-/// inside two (a post in a part's hole: the proof leaves it to the exact path). Loops far
-/// apart (as [`Support::approach`] then checks) are nested when one's box holds the
-/// other's and one point of the other lies inside it.
+/// inside two (a post in a part's hole: the proof leaves it to the exact path), or when
+/// more pairs of boxes meet than [`PAIRS_PER_LOOP`] a loop (loops strewn over each other's
+/// boxes: the exact path's work anyway). Loops far apart (as [`Support::approach`] then
+/// checks) are nested when one's box holds the other's and one point of the other lies
+/// inside it.
 fn nesting(loops: &mut [Loop]) -> bool {
+    let mut budget = PAIRS_PER_LOOP * loops.len() + 1000;
     let mut order: Vec<usize> = (0..loops.len()).collect();
     order.sort_unstable_by(|&a, &b| loops[a].bbox[0].total_cmp(&loops[b].bbox[0]));
     let mut depth = vec![0u8; loops.len()];
@@ -375,10 +381,17 @@ fn nesting(loops: &mut [Loop]) -> bool {
             if b.bbox[1] > a.bbox[3] || a.bbox[1] > b.bbox[3] {
                 continue;
             }
+            budget = match budget.checked_sub(1) {
+                Some(left) => left,
+                None => return false,
+            };
             if holds(a, b) {
                 depth[j] += 1;
             } else if holds(b, a) {
                 depth[i] += 1;
+            }
+            if depth[i] > 1 || depth[j] > 1 {
+                return false;
             }
         }
     }
@@ -845,6 +858,17 @@ fn holes_kept(
     let min_hole = opts.area.min_hole;
     let mut clear: Vec<Option<bool>> = Vec::new();
     let mut mids: Option<Vec<[f64; 2]>> = None;
+    // This layer's holes' loops by the left side of their boxes, and the widest box: those
+    // whose box can meet one below lie in a run of them (a plate pierced by a thousand
+    // holes asks a column, not all).
+    let mut above: Vec<usize> = (0..here.loops.len())
+        .filter(|&k| here.loops[k].hole)
+        .collect();
+    above.sort_unstable_by(|&a, &b| here.loops[a].bbox[0].total_cmp(&here.loops[b].bbox[0]));
+    let widest = above
+        .iter()
+        .map(|&k| here.loops[k].bbox[2] - here.loops[k].bbox[0])
+        .fold(0.0, f64::max);
     for (id, lb) in below.loops.iter().enumerate().filter(|(_, l)| l.hole) {
         // No point of the inside lies farther from the loop than half its box's narrower
         // side: nothing of the hole is left once the tolerance has grown the wall.
@@ -857,11 +881,13 @@ fn holes_kept(
         if std::f64::consts::FRAC_PI_4 * min_hole * min_hole <= NOTCH_AREA {
             return Some("minimum hole too small to tell a hole from a notch".into());
         }
+        let from = above.partition_point(|&k| here.loops[k].bbox[0] < lb.bbox[0] - widest);
+        let to = above.partition_point(|&k| here.loops[k].bbox[0] <= lb.bbox[2]);
         let kept = here.flank_gap.is_some()
-            && here.loops.iter().enumerate().any(|(k, lh)| {
+            && above[from..to.max(from)].iter().any(|&k| {
+                let lh = &here.loops[k];
                 let band = lh.half + BAND_SLACK;
-                if !lh.hole
-                    || here.approach <= 2.0 * band
+                if here.approach <= 2.0 * band
                     || opts.min_width() < MIN_WIDTH_HOLES
                     || !boxes_meet(&lh.bbox, &lb.bbox)
                 {
