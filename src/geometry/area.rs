@@ -657,7 +657,7 @@ pub(super) fn interior(role: Role) -> bool {
 }
 
 /// Midpoints of the segments of the paths `keep` selects, sorted by x for range queries.
-fn midpoints(layer: &Layer, keep: impl Fn(Role) -> bool) -> Vec<[f64; 2]> {
+pub(super) fn midpoints(layer: &Layer, keep: impl Fn(Role) -> bool) -> Vec<[f64; 2]> {
     let mut v: Vec<[f64; 2]> = layer
         .paths
         .iter()

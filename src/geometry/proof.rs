@@ -36,7 +36,7 @@
 
 use crate::layers::{Layer, LayerKind, Path, Role};
 
-use super::area::{interior, is_outline, wall_joins};
+use super::area::{interior, is_outline, midpoints, wall_joins};
 use super::regions::DetectOptions;
 
 /// Sample spacing along a strand (mm).
@@ -908,7 +908,7 @@ fn holes_kept(
                 if clear.is_empty() {
                     clear = vec![None; here.loops.len()];
                 }
-                let mids = mids.get_or_insert_with(|| interior_midpoints(layer));
+                let mids = mids.get_or_insert_with(|| midpoints(layer, interior));
                 *clear[k].get_or_insert_with(|| hole_clear(mids, here, k))
             });
         if !kept {
@@ -963,20 +963,9 @@ fn follows(l: &Loop, below: &Grid, id: u32, r: f64) -> bool {
     })
 }
 
-/// The midpoints of the segments of `layer`'s interior strands, sorted by x.
-fn interior_midpoints(layer: &Layer) -> Vec<[f64; 2]> {
-    let mut v: Vec<[f64; 2]> = layer
-        .paths
-        .iter()
-        .filter(|p| interior(p.role))
-        .flat_map(|p| p.points.windows(2).map(|w| lerp(w[0], w[1], 0.5)))
-        .collect();
-    v.sort_unstable_by(|a, b| a[0].total_cmp(&b[0]));
-    v
-}
-
 /// Whether nothing of `layer` but loop `k` of `here` lies inside it, but what its own bead
-/// covers: no midpoint of an interior strand's segment (`mids`: [`interior_midpoints`]),
+/// covers: no midpoint of an interior strand's segment (`mids`, sorted by x: the area
+/// model's own evidence of infill, [`midpoints`]),
 /// and no footprint of another outline strand reaching farther than half the loop's width
 /// (and [`BAND_SLACK`]) past its centreline, nor crossing it.
 fn hole_clear(mids: &[[f64; 2]], here: &Support, k: usize) -> bool {
