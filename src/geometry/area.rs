@@ -1288,13 +1288,7 @@ mod tests {
     fn a_raster_s_enclosed_runs_are_the_cells_a_flood_from_its_edge_does_not_reach() {
         // Random rasters (widths across word boundaries, densities from sparse to solid)
         // against a cell-by-cell flood from the edge.
-        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
-        let mut rand = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            seed
-        };
+        let mut rand = crate::layers::testing::xorshift(0x9e37_79b9_7f4a_7c15);
         for case in 0..300 {
             let nx = 1 + (rand() % 150) as usize;
             let ny = 1 + (rand() % 40) as usize;

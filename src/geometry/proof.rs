@@ -1256,13 +1256,8 @@ mod tests {
     #[test]
     fn random_holes_never_hide_a_region_from_the_proof() {
         // `verdict` asserts that the exact path finds nothing wherever the proof holds.
-        let mut seed = 0x2545_f491_4f6c_dd1du64;
-        let mut rand = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut next = crate::layers::testing::xorshift(0x2545_f491_4f6c_dd1d);
+        let mut rand = move || (next() >> 11) as f64 / (1u64 << 53) as f64;
         let mut proven = 0;
         for _ in 0..1000 {
             let n = 6 + (rand() * 40.0) as usize;

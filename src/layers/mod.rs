@@ -1534,6 +1534,16 @@ impl<R: BufRead> Iterator for LayerReader<R> {
 pub(crate) mod testing {
     use super::{Layer, LayerKind, Path, Role};
 
+    /// A xorshift generator from `seed` (not zero): the same cases on every run.
+    pub fn xorshift(mut seed: u64) -> impl FnMut() -> u64 {
+        move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed
+        }
+    }
+
     /// A strand `width` wide along `pts`, 0.2 mm high (segments from line 1, 0.01 mm of E).
     pub fn path(role: Role, width: f64, pts: &[[f64; 2]]) -> Path {
         Path {
