@@ -734,31 +734,89 @@ fn is_wall(role: Role) -> bool {
 /// ends every wall loop 1.6 mm short: with the seams aligned, a ring's walls all open at the
 /// same place, the ring read as a C, and the hole it walls filled), for the outline only
 /// (nothing is printed there; the nozzle's pressure lays the coasted end).
+///
+/// A wall is a run of wall paths each starting where the one before it ended (PrusaSlicer
+/// splits a wall wherever its width changes): only the run's own two ends are open. Joining
+/// the ends of one piece of a run, or a closed run to the wall printed next, ran across the
+/// hole such a wall winds round (an Arachne perimeter threading between a perforated
+/// plate's holes; a hole's wall followed by the perimeter beside it): a phantom strip of
+/// support over the hole.
 pub(super) fn wall_joins(layer: &Layer) -> Vec<Path> {
+    let paths = &layer.paths;
+    let dist = |a: [f64; 2], b: [f64; 2]| ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt();
+    // Whether wall `q` starts where wall `p` of the same object ends.
+    let continues = |p: &Path, q: &Path| {
+        is_wall(p.role)
+            && is_wall(q.role)
+            && p.object == q.object
+            && matches!((p.points.last(), q.points.first()), (Some(&e), Some(&s)) if dist(e, s) <= 1e-6)
+    };
     let mut joins = Vec::new();
-    for p in layer.paths.iter().filter(|p| is_wall(p.role)) {
-        let (Some(&start), Some(&end)) = (p.points.first(), p.points.last()) else {
+    // The first path of the run the current wall belongs to, and the run's length so far.
+    let mut first = 0;
+    let mut len = 0.0;
+    for (i, p) in paths.iter().enumerate() {
+        if !is_wall(p.role) {
+            continue;
+        }
+        if i == 0 || !continues(&paths[i - 1], p) {
+            first = i;
+            len = 0.0;
+        }
+        len += p.length();
+        let next = paths.get(i + 1);
+        if next.is_some_and(|q| continues(p, q)) {
+            continue;
+        }
+        let (Some(&start), Some(&end)) = (paths[first].points.first(), p.points.last()) else {
             continue;
         };
-        let gap = ((end[0] - start[0]).powi(2) + (end[1] - start[1]).powi(2)).sqrt();
-        if gap > 1e-6 && gap <= WALL_JOIN && gap <= SEAM_SHARE * p.length() {
+        let gap = dist(end, start);
+        let points: usize = paths[first..=i].iter().map(|q| q.points.len()).sum();
+        let closed = gap <= 1e-6 && points > 2;
+        let seam = gap > 1e-6 && gap <= WALL_JOIN && gap <= SEAM_SHARE * len;
+        if seam {
             joins.push(join(p, end, start, p.width));
         }
-    }
-    for w in layer.paths.windows(2) {
-        let (a, b) = (&w[0], &w[1]);
-        if !(is_wall(a.role) && is_wall(b.role)) || a.object != b.object {
+        // A wall broken off (Cura's coasting over a bridged wall's end) is joined to the
+        // wall printed next; a loop is whole.
+        let Some(q) = next else { continue };
+        if closed || seam || !is_wall(q.role) || q.object != p.object {
             continue;
         }
-        let (Some(&end), Some(&start)) = (a.points.last(), b.points.first()) else {
-            continue;
-        };
-        let gap = ((end[0] - start[0]).powi(2) + (end[1] - start[1]).powi(2)).sqrt();
-        if gap > 1e-6 && gap <= WALL_JOIN {
-            joins.push(join(a, end, start, a.width.min(b.width)));
+        if let Some(&s) = q.points.first() {
+            let g = dist(end, s);
+            if g > 1e-6 && g <= WALL_JOIN && goes_on(p, q, end, s) {
+                joins.push(join(p, end, s, p.width.min(q.width)));
+            }
         }
     }
     joins
+}
+
+/// Least cosine between a join and the wall pieces it joins ([`goes_on`]): 60 degrees, what
+/// a join over 1.6 mm of coasting turns on a wall of 0.8 mm radius.
+const GOES_ON_COS: f64 = 0.5;
+
+/// Whether the join from `p`'s end `e` to `q`'s start `s` goes on the way `p` ends and `q`
+/// starts: a wall coasted to a stop and taken up again further along. Two short pieces of
+/// an Arachne perimeter printed one after the other at a corner lie 2 mm apart across a
+/// hole, turned back on each other.
+fn goes_on(p: &Path, q: &Path, e: [f64; 2], s: [f64; 2]) -> bool {
+    let dir = |a: [f64; 2], b: [f64; 2]| {
+        let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+        let l = (dx * dx + dy * dy).sqrt();
+        (l > 1e-9).then(|| [dx / l, dy / l])
+    };
+    let n = p.points.len();
+    let (Some(j), Some(a), Some(b)) = (
+        dir(e, s),
+        (n >= 2).then(|| dir(p.points[n - 2], e)).flatten(),
+        (q.points.len() >= 2).then(|| dir(s, q.points[1])).flatten(),
+    ) else {
+        return false;
+    };
+    j[0] * a[0] + j[1] * a[1] >= GOES_ON_COS && j[0] * b[0] + j[1] * b[1] >= GOES_ON_COS
 }
 
 /// Farthest (in widths of the wider wall) the open ends of two walls lie apart and are
@@ -1588,6 +1646,74 @@ mod tests {
         assert!((a - b).abs() < 1e-3 * b, "{a} vs {b}");
         // One part: no split.
         assert!(Strands::of(&paths[..1]).split().is_none());
+    }
+
+    /// A loop of `n` points round `c` of radius `r`, counter-clockwise from angle 0, closed.
+    fn ring(c: [f64; 2], r: f64, n: usize) -> Vec<[f64; 2]> {
+        (0..=n)
+            .map(|k| {
+                let a = std::f64::consts::TAU * k as f64 / n as f64;
+                [c[0] + r * a.cos(), c[1] + r * a.sin()]
+            })
+            .collect()
+    }
+
+    #[test]
+    fn walls_are_not_joined_across_the_hole_they_wind_round() {
+        let w = 0.45;
+        let c = [10.0, 10.0];
+        let outline = [
+            [0.0, 0.0],
+            [20.0, 0.0],
+            [20.0, 20.0],
+            [0.0, 20.0],
+            [0.0, 0.0],
+        ];
+        let hole_wall = path(Role::ExternalPerimeter, w, &ring(c, 0.9, 16));
+        // The perimeter round the hole, printed next, starts 2.2 mm from the wall's end (at
+        // 10.9, 10), across the hole.
+        let mut round: Vec<[f64; 2]> = ring(c, 1.33, 16);
+        round.rotate_left(8);
+        round.pop();
+        round.push(round[0]);
+        let round = path(Role::Perimeter, w, &round);
+        // Two short pieces of a threading perimeter, turned back on each other, 2 mm apart
+        // across the hole.
+        let a = path(Role::Perimeter, w, &[[8.6, 9.0], [8.6, 9.2]]);
+        let b = path(Role::Perimeter, w, &[[10.6, 9.0], [10.4, 9.0]]);
+        // A perimeter split where its width changes: a run of two pieces closing a loop
+        // round the hole, the first one's own ends 2.1 mm apart on either side of it (and
+        // within a fifth of its length).
+        let first = path(
+            Role::Perimeter,
+            w,
+            &[[8.95, 10.0], [8.95, 5.0], [11.05, 5.0], [11.05, 10.0]],
+        );
+        let second = path(
+            Role::Perimeter,
+            w * 1.1,
+            &[[11.05, 10.0], [11.05, 14.0], [8.95, 14.0], [8.95, 10.0]],
+        );
+        let l = layer(vec![
+            path(Role::ExternalPerimeter, w, &outline),
+            hole_wall,
+            round,
+            a,
+            b,
+            first,
+            second,
+        ]);
+        let joins = wall_joins(&l);
+        for j in &joins {
+            let (p, q) = (j.points[0], j.points[1]);
+            let mid = [(p[0] + q[0]) / 2.0, (p[1] + q[1]) / 2.0];
+            let d = ((mid[0] - c[0]).powi(2) + (mid[1] - c[1]).powi(2)).sqrt();
+            assert!(d > 1.3, "a join across the hole: {p:?} -> {q:?}");
+        }
+        // The hole stays open for the layer above.
+        let area = printed_area(&l, &AreaOptions::default());
+        assert!(!area.contains(&geo::Point::new(c[0], c[1])));
+        assert!(area.0.iter().any(|p| !p.interiors().is_empty()));
     }
 
     #[test]
