@@ -307,6 +307,16 @@ impl Loop {
     }
 
     /// Twice the signed area of the polygon the loop closes (positive counter-clockwise).
+    /// `1.0` when the part's material lies left of the way the loop runs (counter-clockwise
+    /// round a part, clockwise round a hole), else `-1.0`.
+    fn material_side(&self) -> f64 {
+        if (self.signed_area2() > 0.0) != self.hole {
+            1.0
+        } else {
+            -1.0
+        }
+    }
+
     fn signed_area2(&self) -> f64 {
         let n = self.pts.len();
         (0..n)
@@ -481,7 +491,8 @@ impl Support {
                 .iter()
                 .map(|l| super::polyline_length(&l.pts))
                 .collect();
-            sup.approach = Support::closest_approach(&sup.grid, &loop_len);
+            let sides: Vec<f64> = sup.loops.iter().map(Loop::material_side).collect();
+            sup.approach = Support::closest_approach(&sup.grid, &loop_len, &sides);
         }
         sup
     }
@@ -499,11 +510,7 @@ impl Support {
             let he = l.half;
             // Material lies left of the way the loop runs when it runs counter-clockwise
             // round a part or clockwise round a hole.
-            let side = if (l.signed_area2() > 0.0) != l.hole {
-                1.0
-            } else {
-                -1.0
-            };
+            let side = l.material_side();
             let mut last: Option<usize> = None;
             for w in l.pts.windows(2) {
                 let normal = [-(w[1][1] - w[0][1]) * side, (w[1][0] - w[0][0]) * side];
@@ -565,8 +572,10 @@ impl Support {
     }
 
     /// See [`Support::approach`]: exact segment-to-segment distances between the external
-    /// loops' segments, up to [`CELL`].
-    fn closest_approach(outline: &Grid, loop_len: &[f64]) -> f64 {
+    /// loops' segments, up to [`CELL`], across air: two pieces that each lie wholly on the
+    /// other's material side ([`across_material`]) face each other across the part, where
+    /// growing the area closes nothing (the walls between a perforated plate's holes).
+    fn closest_approach(outline: &Grid, loop_len: &[f64], sides: &[f64]) -> f64 {
         let mut closest = CELL;
         for s in &outline.segs {
             let Some((id, at)) = s.loop_at else { continue };
@@ -591,12 +600,50 @@ impl Support {
                         return false;
                     }
                 }
-                closest = closest.min(seg_dist(s, t));
+                let d = seg_dist(s, t);
+                if d < closest {
+                    let side = |id: u32| sides.get(id as usize).copied().unwrap_or(0.0);
+                    if !across_material(s, side(id), t, side(tid)) {
+                        closest = d;
+                    }
+                }
                 false
             });
         }
         closest
     }
+}
+
+/// Whether `s` and `t` face each other across the part: the point of `t` nearest `s` lies
+/// on `s`'s material side (`side_s`, as [`Loop::material_side`]) and the point of `s` nearest
+/// `t` on `t`'s. Where air lies between two loops (a slot, a bay's mouth, the gap between
+/// two parts), the banks come closest at a pair of points that are the nearest points of
+/// their pieces (the distance between two segments is convex in their parameters), and the
+/// way across leaves one bank into air: strictly on the air side of the piece there, or of
+/// one of the two pieces meeting there at a corner, so that pair fails this. A point on a
+/// piece's line counts as material (two aligned square holes' corners face along their
+/// sides); touching or crossing pieces as air.
+fn across_material(s: &Seg, side_s: f64, t: &Seg, side_t: f64) -> bool {
+    if segments_cross(s.a, s.b, t.a, t.b) {
+        return false;
+    }
+    let d2 = |p: [f64; 2], q: [f64; 2]| (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2);
+    let (p, q) = [
+        (s.a, closest(s.a, t)),
+        (s.b, closest(s.b, t)),
+        (closest(t.a, s), t.a),
+        (closest(t.b, s), t.b),
+    ]
+    .into_iter()
+    .min_by(|x, y| d2(x.0, x.1).total_cmp(&d2(y.0, y.1)))
+    .unwrap_or((s.a, t.a));
+    if d2(p, q) <= 1e-18 {
+        return false;
+    }
+    let beyond = |u: &Seg, side: f64, r: [f64; 2]| {
+        side * ((u.b[0] - u.a[0]) * (r[1] - u.a[1]) - (u.b[1] - u.a[1]) * (r[0] - u.a[0])) >= 0.0
+    };
+    beyond(s, side_s, q) && beyond(t, side_t, p)
 }
 
 fn seg_box(s: &Seg) -> [f64; 4] {
@@ -1340,5 +1387,75 @@ mod tests {
         here.push(path(Role::Infill, &[[30.0, 30.0], [32.0, 30.0]]));
         let why = verdict(part(5.0, 2, true), here);
         assert!(why.is_some_and(|w| w.contains("infill point")));
+    }
+
+    /// A part with two square holes whose walls run 0.75 mm apart (centrelines) across the
+    /// part's material, each flanked by its inner perimeter.
+    fn two_holes(infill_over_second: bool) -> Vec<Path> {
+        let mut v = part(8.0, 2, false);
+        for c in [8.125, 11.875] {
+            let sq = |h: f64| {
+                square(0.0, h)
+                    .iter()
+                    .map(|q| [q[0] + c, q[1] + 10.0])
+                    .collect::<Vec<_>>()
+            };
+            v.push(path(Role::ExternalPerimeter, &sq(1.5)));
+            v.push(path(Role::Perimeter, &sq(1.93)));
+        }
+        if infill_over_second {
+            let mut y = 8.7;
+            while y < 11.4 {
+                v.push(path(Role::SolidInfill, &[[10.6, y], [13.15, y]]));
+                y += 0.45;
+            }
+        }
+        v
+    }
+
+    #[test]
+    fn holes_close_together_across_the_part_are_proven() {
+        // Growing the area closes nothing between them: the material is there already.
+        assert_eq!(verdict(two_holes(false), two_holes(false)), None);
+        // A lid over one of them is over air: left to the exact path.
+        assert!(verdict(two_holes(false), two_holes(true)).is_some());
+    }
+
+    #[test]
+    fn pieces_face_across_the_part_only_with_each_on_the_other_s_material_side() {
+        let seg = |a: [f64; 2], b: [f64; 2]| Seg {
+            a,
+            b,
+            half: 0.225,
+            role: Role::ExternalPerimeter,
+            loop_at: None,
+        };
+        // Two holes' walls (counter-clockwise round each: material on the right) facing
+        // each other: the left hole's east side runs up, the right hole's west side down.
+        let east = seg([9.6, 8.5], [9.6, 11.5]);
+        let west = seg([10.4, 11.5], [10.4, 8.5]);
+        assert!(across_material(&east, -1.0, &west, -1.0));
+        // Two parts' outlines (counter-clockwise: material on the left) facing each other
+        // across the air between them.
+        let right_side = seg([9.6, 8.5], [9.6, 11.5]);
+        let left_side = seg([10.4, 11.5], [10.4, 8.5]);
+        assert!(!across_material(&right_side, 1.0, &left_side, 1.0));
+        // Corners of aligned holes face along their sides: on the line counts as material.
+        let bottom = seg([10.4, 8.5], [13.4, 8.5]);
+        assert!(across_material(&east, -1.0, &bottom, -1.0));
+        // One material side facing the other's air side (a post near a hole's wall's back).
+        assert!(!across_material(&east, -1.0, &left_side, 1.0));
+        // A long outline beside a short hole wall: judged at their nearest points, not by
+        // the outline's far end (which lies beyond the hole wall's line).
+        let outline = seg([5.0, 60.0], [5.0, 0.0]);
+        let hole_west = seg([5.75, 10.2], [5.8, 9.8]);
+        assert!(across_material(&outline, 1.0, &hole_west, -1.0));
+        // Crossing pieces.
+        assert!(!across_material(
+            &seg([0.0, 0.0], [2.0, 2.0]),
+            1.0,
+            &seg([0.0, 2.0], [2.0, 0.0]),
+            1.0
+        ));
     }
 }
