@@ -19,8 +19,10 @@
 //! 3. G has holes only inside the loops that wall the part's holes: below, every external
 //!    perimeter is a closed loop, inside at most one other (a hole's wall in a part's
 //!    outline; a post standing in a hole is left to the exact path), loops are far apart from
-//!    each other and from themselves (no loop comes back within reach of itself farther
-//!    along), and an inner perimeter runs beside every external one on its material side
+//!    each other and from themselves across air (no loop comes back within reach of itself
+//!    farther along; loops facing each other across the part, as the walls between a
+//!    perforated plate's holes, may come as close as they like: growing closes no air
+//!    there), and an inner perimeter runs beside every external one on its material side
 //!    (inside an outline, outside a hole's wall) within a gap no hole of `min_hole` fits in,
 //!    so no hole of the area below is walled by an external perimeter but the part's holes
 //!    (the only holes left open), and growing it closes none.
@@ -256,8 +258,9 @@ pub struct Support {
     /// The layer tells walls from infill and has no support material or overhang perimeter.
     plain: bool,
     grid: Grid,
-    /// Closest approach (mm) of an external loop to another loop or to itself farther along
-    /// than [`LOOP_ARC`], searched up to [`CELL`] (the value when none is nearer).
+    /// Closest approach (mm) across air of an external loop to another loop or to itself
+    /// farther along than [`LOOP_ARC`], searched up to [`CELL`] (the value when none is
+    /// nearer).
     approach: f64,
     /// Whether the external loops are closed, their boxes apart and each flanked by an inner
     /// perimeter within the gap given (mm); `None` when they are not.
