@@ -1193,7 +1193,8 @@ fn a_chamfer_beside_a_part_of_another_layer_height_keeps_its_next_layer_held() {
 /// and its bow hung 1.1 mm more than as sliced. Judged layer by layer, not on the plate's
 /// total: what stays in air is the shelf's internal solid infill ending over the gaps of its
 /// sparse infill (support by design), and PrusaSlicer 2.5 lays it differently run to run
-/// (6-26 mm on the plate over six slices of the same models).
+/// (6-26 mm on the plate over six slices of the same models, once 20.9 mm on one layer, as
+/// much after the rewrite: no region there). The hull's floating layers hold 700-900 mm.
 #[test]
 fn a_hull_beside_parts_of_two_other_layer_heights_keeps_every_layer_held() {
     let what = "hull beside parts at two other layer heights";
@@ -1205,7 +1206,7 @@ fn a_hull_beside_parts_of_two_other_layer_heights_keeps_every_layer_held() {
     let Some((before, after)) = mixed_heights_rewrite(what, &plate) else {
         return;
     };
-    held_up(what, &before, &after, 20.0);
+    held_up(what, &before, &after, 50.0);
 }
 
 /// A plate of test parts, each at (offset, layer height), sliced by PrusaSlicer's defaults
