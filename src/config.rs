@@ -314,13 +314,32 @@ impl SlicerConfig {
         (w > 0.0 && w.is_finite()).then_some(w)
     }
 
-    /// External perimeter width in mm, falling back to the general extrusion width and then
-    /// to Slic3r's automatic width (1.125 x nozzle).
-    /// Whether the file states the external perimeter width (or the general one).
+    /// Whether the file states the external perimeter width: in mm or percent (or the general
+    /// extrusion width), or as PrusaSlicer's automatic width ([`Self::auto_width`]).
     pub fn external_perimeter_width_stated(&self) -> bool {
         self.width("external_perimeter_extrusion_width")
             .or_else(|| self.width("extrusion_width"))
+            .or_else(|| self.auto_width())
             .is_some()
+    }
+
+    /// PrusaSlicer's automatic external perimeter width, where the file sets it and the
+    /// general width to `0` and states the nozzle: 1.125 x the nozzle (its
+    /// `Flow::auto_extrusion_width`; the walls' `;WIDTH` says so). Taken from the walls as
+    /// extruded instead, a 0.6 mm nozzle's plate over fins printed as single lines of
+    /// 0.8-1.04 mm got loops 0.95 mm wide, too wide to bite the fins (17.7 mm in air).
+    /// SuperSlicer (which writes `extrusion_spacing`) computes its own.
+    fn auto_width(&self) -> Option<f64> {
+        let zero = |k: &str| self.get(k).map(str::trim) == Some("0");
+        let auto = zero("external_perimeter_extrusion_width")
+            && self
+                .get("extrusion_width")
+                .is_none_or(|_| zero("extrusion_width"))
+            && self.get("extrusion_spacing").is_none();
+        let nozzle = self
+            .number("nozzle_diameter")
+            .filter(|d| (0.05..=3.0).contains(d));
+        nozzle.filter(|_| auto).map(|d| 1.125 * d)
     }
 
     pub fn external_perimeter_width(&self) -> f64 {
@@ -608,6 +627,35 @@ mod tests {
     }
 
     use super::*;
+
+    #[test]
+    fn prusaslicer_s_automatic_width_is_stated_by_the_nozzle() {
+        let block = |lines: &str| {
+            let text = format!("; prusaslicer_config = begin\n{lines}; prusaslicer_config = end\n");
+            SlicerConfig::parse(text.as_bytes())
+        };
+        let auto = block(
+            "; nozzle_diameter = 0.6\n; external_perimeter_extrusion_width = 0\n\
+; extrusion_width = 0\n",
+        );
+        assert!(auto.external_perimeter_width_stated());
+        assert!((auto.external_perimeter_width() - 0.675).abs() < 1e-12);
+        // No nozzle stated, or SuperSlicer's spacing keys: the walls as extruded decide.
+        let no_nozzle = block("; external_perimeter_extrusion_width = 0\n; extrusion_width = 0\n");
+        assert!(!no_nozzle.external_perimeter_width_stated());
+        let superslicer = block(
+            "; nozzle_diameter = 0.4\n; external_perimeter_extrusion_width = 0\n\
+; extrusion_width = 0\n; extrusion_spacing = 0\n",
+        );
+        assert!(!superslicer.external_perimeter_width_stated());
+        // A general width stated: that one.
+        let general = block(
+            "; nozzle_diameter = 0.4\n; external_perimeter_extrusion_width = 0\n\
+; extrusion_width = 0.5\n",
+        );
+        assert!(general.external_perimeter_width_stated());
+        assert!((general.external_perimeter_width() - 0.5).abs() < 1e-12);
+    }
 
     #[test]
     fn reads_prusaslicer_block_and_env_overrides() {
