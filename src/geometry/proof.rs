@@ -927,6 +927,15 @@ fn holes_kept(
         if side <= 2.0 * r_b {
             continue;
         }
+        // Nor is a hole the area model closes below: a point inside the loop more than `d`
+        // from it lies more than `d` inside the loop's box on every side (the ray from it
+        // out of the box's side crosses the loop), so every hole of the footprint in it,
+        // its edge at least the bead's half width (less the arcs' chord error) from the
+        // centreline, has a box narrower than `min_hole` and is filled
+        // ([`super::area`]'s rule): no hole of the grown area lies there.
+        if side - 2.0 * lb.half * (1.0 - ARC_SHARE) < min_hole {
+            continue;
+        }
         // The disc round `x` must not fit in a notch.
         if std::f64::consts::FRAC_PI_4 * min_hole * min_hole <= NOTCH_AREA {
             return Some("minimum hole too small to tell a hole from a notch".into());
@@ -1212,6 +1221,9 @@ mod tests {
         assert_eq!(verdict(tube(2.0, false), tube(2.0, false)), None);
         // Widening by less than the tolerance: the wall still rests on the one below.
         assert_eq!(verdict(tube(2.0, true), tube(2.1, true)), None);
+        // A pin hole the area model closes below (0.75 mm between the bead's inner edges).
+        assert_eq!(verdict(tube(0.6, true), tube(0.6, true)), None);
+        assert_eq!(verdict(tube(0.6, false), tube(0.6, false)), None);
     }
 
     #[test]
@@ -1361,9 +1373,9 @@ mod tests {
             let mut holes: Vec<([f64; 2], [f64; 2])> = Vec::new();
             let mut x = 5.5;
             while holes.len() < 4 {
-                // Wide enough for the hole rule's disc (a narrower hole is left to the exact
-                // path).
-                let h = [1.0 + rand() * 1.0, 1.0 + rand() * 1.6];
+                // From holes the area model closes (under `min_hole` across the bead's
+                // inner edges) to wide ones.
+                let h = [0.5 + rand() * 1.5, 0.5 + rand() * 2.0];
                 let c = [x + h[0], 10.0 + (rand() - 0.5) * 2.0];
                 if c[0] + h[0] > 14.5 {
                     break;
@@ -1416,8 +1428,8 @@ mod tests {
                 proven += 1;
             }
         }
-        // Enough cases proven for the check to mean something (about a fifth).
-        assert!(proven > 150, "{proven}");
+        // Enough cases proven for the check to mean something (about one in eight).
+        assert!(proven > 100, "{proven}");
     }
 
     #[test]
