@@ -603,10 +603,12 @@ impl Support {
                         return false;
                     }
                 }
-                let d = seg_dist(s, t);
+                // Crossing pieces are 0 apart, and never across the part.
+                let nearest = nearest_points(s, t);
+                let d = nearest.map_or(0.0, |(p, q)| dist(p, q));
                 if d < closest {
                     let side = |id: u32| sides.get(id as usize).copied().unwrap_or(0.0);
-                    if !across_material(s, side(id), t, side(tid)) {
+                    if !nearest.is_some_and(|pq| across_material(s, side(id), t, side(tid), pq)) {
                         closest = d;
                     }
                 }
@@ -617,21 +619,34 @@ impl Support {
     }
 }
 
-/// Whether `s` and `t` face each other across the part: the point of `t` nearest `s` lies
-/// on `s`'s material side (`side_s`, as [`Loop::material_side`]) and the point of `s` nearest
-/// `t` on `t`'s. Where air lies between two loops (a slot, a bay's mouth, the gap between
-/// two parts), the banks come closest at a pair of points that are the nearest points of
-/// their pieces (the distance between two segments is convex in their parameters), and the
-/// way across leaves one bank into air: strictly on the air side of the piece there, or of
-/// one of the two pieces meeting there at a corner, so that pair fails this. A point on a
-/// piece's line counts as material (two aligned square holes' corners face along their
-/// sides); touching or crossing pieces as air.
-fn across_material(s: &Seg, side_s: f64, t: &Seg, side_t: f64) -> bool {
-    if segments_cross(s.a, s.b, t.a, t.b) {
+/// Whether `s` and `t` face each other across the part, given their nearest points `p` (on
+/// `s`) and `q` (on `t`, [`nearest_points`]): `q` lies on `s`'s material side (`side_s`, as
+/// [`Loop::material_side`]) and `p` on `t`'s. Where air lies between two loops (a slot, a
+/// bay's mouth, the gap between two parts), the banks come closest at a pair of points that
+/// are the nearest points of their pieces (the distance between two segments is convex in
+/// their parameters), and the way across leaves one bank into air: strictly on the air side
+/// of the piece there, or of one of the two pieces meeting there at a corner, so that pair
+/// fails this. A point on a piece's line counts as material (two aligned square holes'
+/// corners face along their sides); touching pieces as air.
+fn across_material(s: &Seg, side_s: f64, t: &Seg, side_t: f64, (p, q): Pair) -> bool {
+    if dist(p, q) <= 1e-9 {
         return false;
     }
-    let d2 = |p: [f64; 2], q: [f64; 2]| (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2);
-    let (p, q) = [
+    let beyond = |u: &Seg, side: f64, r: [f64; 2]| {
+        side * ((u.b[0] - u.a[0]) * (r[1] - u.a[1]) - (u.b[1] - u.a[1]) * (r[0] - u.a[0])) >= 0.0
+    };
+    beyond(s, side_s, q) && beyond(t, side_t, p)
+}
+
+/// A point of one segment and a point of another.
+type Pair = ([f64; 2], [f64; 2]);
+
+/// The nearest points of `s` and `t` (on `s`, on `t`); `None` where they cross.
+fn nearest_points(s: &Seg, t: &Seg) -> Option<Pair> {
+    if segments_cross(s.a, s.b, t.a, t.b) {
+        return None;
+    }
+    [
         (s.a, closest(s.a, t)),
         (s.b, closest(s.b, t)),
         (closest(t.a, s), t.a),
@@ -639,14 +654,14 @@ fn across_material(s: &Seg, side_s: f64, t: &Seg, side_t: f64) -> bool {
     ]
     .into_iter()
     .min_by(|x, y| d2(x.0, x.1).total_cmp(&d2(y.0, y.1)))
-    .unwrap_or((s.a, t.a));
-    if d2(p, q) <= 1e-18 {
-        return false;
-    }
-    let beyond = |u: &Seg, side: f64, r: [f64; 2]| {
-        side * ((u.b[0] - u.a[0]) * (r[1] - u.a[1]) - (u.b[1] - u.a[1]) * (r[0] - u.a[0])) >= 0.0
-    };
-    beyond(s, side_s, q) && beyond(t, side_t, p)
+}
+
+fn d2(p: [f64; 2], q: [f64; 2]) -> f64 {
+    (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2)
+}
+
+fn dist(p: [f64; 2], q: [f64; 2]) -> f64 {
+    d2(p, q).sqrt()
 }
 
 fn seg_box(s: &Seg) -> [f64; 4] {
@@ -678,15 +693,7 @@ fn arc_gap(a0: f64, a1: f64, b0: f64, b1: f64, total: f64) -> f64 {
 
 /// Distance between two segments.
 fn seg_dist(s: &Seg, t: &Seg) -> f64 {
-    if segments_cross(s.a, s.b, t.a, t.b) {
-        return 0.0;
-    }
-    let as_seg = |a: [f64; 2], b: [f64; 2]| Seg { a, b, ..*s };
-    dist2(s.a, t)
-        .min(dist2(s.b, t))
-        .min(dist2(t.a, &as_seg(s.a, s.b)))
-        .min(dist2(t.b, &as_seg(s.a, s.b)))
-        .sqrt()
+    nearest_points(s, t).map_or(0.0, |(p, q)| dist(p, q))
 }
 
 fn segments_cross(a: [f64; 2], b: [f64; 2], c: [f64; 2], d: [f64; 2]) -> bool {
@@ -1527,6 +1534,10 @@ mod tests {
             half: 0.225,
             role: Role::ExternalPerimeter,
             loop_at: None,
+        };
+        // As the closest approach asks it.
+        let across_material = |s: &Seg, side_s: f64, t: &Seg, side_t: f64| {
+            nearest_points(s, t).is_some_and(|pq| super::across_material(s, side_s, t, side_t, pq))
         };
         // Two holes' walls (counter-clockwise round each: material on the right) facing
         // each other: the left hole's east side runs up, the right hole's west side down.
