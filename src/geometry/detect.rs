@@ -261,7 +261,7 @@ where
             .par_iter()
             .map(|l| {
                 if opts.prove && l.kind == LayerKind::Layer {
-                    Support::new(l)
+                    Support::new(l, opts)
                 } else {
                     Support::default()
                 }

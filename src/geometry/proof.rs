@@ -47,9 +47,12 @@ pub const STEP: f64 = 0.1;
 const FLANK_STEP: f64 = 0.4;
 /// A flanking gap small enough not to look for a smaller one (mm).
 const FLANK_OK: f64 = 0.5;
-/// Farthest reach the proof queries (mm): a layer below whose loops would need more is left
-/// to the exact path.
+/// Reach (mm) of the proof's queries for flanking perimeters and infill ends, and the least
+/// reach of the search for loops close to each other ([`Support::reach`]).
 const CELL: f64 = 1.0;
+/// Farthest the search for loops close to each other reaches (mm): a layer below whose loops
+/// would need more (a wide nozzle with a tolerance set wide) is left to the exact path.
+const MAX_REACH: f64 = 2.0;
 /// The grid's cell (mm). Twice the reach: a query reads 1 to 4 cells, about as many
 /// strands as with cells of the reach, and a plate's grid has a quarter of the cells to
 /// clear and count (a layer of 16 stems: 22 000 cells of 1 mm).
@@ -259,9 +262,13 @@ pub struct Support {
     plain: bool,
     grid: Grid,
     /// Closest approach (mm) across air of an external loop to another loop or to itself
-    /// farther along than [`LOOP_ARC`], searched up to [`CELL`] (the value when none is
+    /// farther along than [`LOOP_ARC`], searched up to `reach` (the value when none is
     /// nearer).
     approach: f64,
+    /// How far (mm) `approach` was searched: the reach the layer above needs, from this
+    /// layer's widest external perimeter and the tolerance at its height, at least [`CELL`]
+    /// (a 0.6 mm nozzle at 0.3 mm layers needs 1.4 mm).
+    reach: f64,
     /// Whether the external loops are closed, their boxes apart and each flanked by an inner
     /// perimeter within the gap given (mm); `None` when they are not.
     flank_gap: Option<f64>,
@@ -418,7 +425,7 @@ fn nesting(loops: &mut [Loop]) -> bool {
 }
 
 impl Support {
-    pub fn new(layer: &Layer) -> Support {
+    pub fn new(layer: &Layer, opts: &DetectOptions) -> Support {
         if layer.kind != LayerKind::Layer || !plain(layer) {
             return Support::default();
         }
@@ -476,10 +483,17 @@ impl Support {
             .fold(0.0, f64::max);
         let widest_half = segs.iter().map(|s| s.half).fold(0.0, f64::max);
         let grid = Grid::new(segs);
+        // What `why_not` asks of the layer above at the same height, and a little more.
+        let need = widest_external + 2.0 * opts.tolerance_at(layer.height) + 0.06;
         let mut sup = Support {
             plain: true,
             grid,
             approach: f64::INFINITY,
+            reach: if need.is_finite() {
+                need.clamp(CELL, MAX_REACH)
+            } else {
+                CELL
+            },
             flank_gap: None,
             widest_external,
             widest_half,
@@ -495,7 +509,7 @@ impl Support {
                 .map(|l| super::polyline_length(&l.pts))
                 .collect();
             let sides: Vec<f64> = sup.loops.iter().map(Loop::material_side).collect();
-            sup.approach = Support::closest_approach(&sup.grid, &loop_len, &sides);
+            sup.approach = Support::closest_approach(&sup.grid, &loop_len, &sides, sup.reach);
         }
         sup
     }
@@ -575,11 +589,11 @@ impl Support {
     }
 
     /// See [`Support::approach`]: exact segment-to-segment distances between the external
-    /// loops' segments, up to [`CELL`], across air: two pieces that each lie wholly on the
+    /// loops' segments, up to `reach`, across air: two pieces that each lie wholly on the
     /// other's material side ([`across_material`]) face each other across the part, where
     /// growing the area closes nothing (the walls between a perforated plate's holes).
-    fn closest_approach(outline: &Grid, loop_len: &[f64], sides: &[f64]) -> f64 {
-        let mut closest = CELL;
+    fn closest_approach(outline: &Grid, loop_len: &[f64], sides: &[f64], reach: f64) -> f64 {
+        let mut closest = reach;
         for s in &outline.segs {
             let Some((id, at)) = s.loop_at else { continue };
             let slen = seg_len(s);
@@ -778,7 +792,7 @@ pub fn why_not(
         ));
     }
     let reach = below.widest_external + 2.0 * tol + 0.05;
-    if reach >= CELL || below.approach <= reach {
+    if reach >= below.reach || below.approach <= reach {
         return Some(format!("below: loops {:.3} mm apart", below.approach));
     }
     // 4. Every hole of the area below stays a hole of this layer's area.
@@ -1142,7 +1156,12 @@ mod tests {
     fn verdict(below: Vec<Path>, here: Vec<Path>) -> Option<String> {
         let (b, h) = (layer(4, below), layer(5, here));
         let opts = DetectOptions::default();
-        let why = why_not(&Support::new(&b), &h, &Support::new(&h), &opts);
+        let why = why_not(
+            &Support::new(&b, &opts),
+            &h,
+            &Support::new(&h, &opts),
+            &opts,
+        );
         if why.is_none() {
             let (ab, ah) = (printed_area(&b, &opts.area), printed_area(&h, &opts.area));
             assert!(find_regions(&ab, &h, &ah, &opts).is_empty());

@@ -144,6 +144,28 @@ fn the_proof_changes_no_region_of_any_part_sliced_by_cura() {
 }
 
 #[test]
+fn a_wide_nozzle_s_layers_are_proven() {
+    // PrusaSlicer's defaults with a 0.6 mm nozzle at 0.3 mm layers: the layer above may reach
+    // 1.4 mm from a loop below (its 0.68 mm external perimeter, and the tolerance of half of
+    // it on either side), farther than a fixed 1 mm search for loops close to each other.
+    for name in ["holes_mixed", "mushroom", "hook"] {
+        let args = ["--nozzle-diameter", "0.6", "--layer-height", "0.3"];
+        let Some(data) = slice_defaults(name, &args) else {
+            return;
+        };
+        let spared = same_both_ways(&data, &format!("{name} {args:?}"));
+        let layers = String::from_utf8_lossy(&data)
+            .lines()
+            .filter(|l| l.starts_with(";LAYER_CHANGE"))
+            .count();
+        assert!(
+            spared * 3 > layers * 2,
+            "{name}: spared {spared} of {layers} layers"
+        );
+    }
+}
+
+#[test]
 fn a_roof_over_a_single_walled_box_is_found_with_the_proof_on() {
     // 20 x 20 x 10 box, one wall, no infill, closed by a 2 mm roof.
     let mut m = Mesh::default();
