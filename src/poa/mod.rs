@@ -493,7 +493,10 @@ pub(super) fn plan_in(
         }
     }
     let perimeter = clip_lines(&rings(&perimeter_area), &zone, true);
-    if thin {
+    'thin: {
+        if !thin {
+            break 'thin;
+        }
         // Loops from the wall below outward, `step` apart like any region's, where the
         // perimeter would not rest on what lies inside it: loop k goes where its centre is
         // at least [`NEAR_LOOP_AT`] widths inside the perimeter's, of full width where it is
@@ -592,6 +595,17 @@ pub(super) fn plan_in(
                 .map(|s| s.points.len())
                 .sum::<usize>();
             if strands.len() > before {
+                // Rings are offsets of the wall below: one laid [`DETACHED`] rings or more
+                // past the last one laid (or the wall) rests on nothing. A long one means
+                // the region is no gradual overhang's ring, however narrow: a wheel's rim on
+                // spokes too narrow for a ring piece (0.6 mm nozzle) had its rings laid
+                // round it in air, 104 mm each. The fronts below cross such strips as
+                // rungs. (A bit of one, a window's far corner, stays: the region's plan
+                // without it left more in air.)
+                let laid: f64 = strands[before..].iter().map(|s| s.length()).sum();
+                if k >= loops + DETACHED && laid > CANTILEVER_REACH {
+                    break 'thin;
+                }
                 loops = k;
             }
         }
@@ -845,7 +859,7 @@ pub(super) fn plan_in(
         width: w,
     };
     strands.extend(held_by_wall.strands(held_contour, w, &mut at));
-    let ordered = order_loops(loops, step, seam_stagger(w, step), &mut at.clone());
+    let ordered = order_loops(loops, step, w, seam_stagger(w, step), &mut at.clone());
     // The loops with the next loops' bits laid from the rings that hold them, kept where
     // the whole plan so travels less (bits close together along a ring were reached one
     // from the next, and each spliced one returns to the ring).
@@ -886,6 +900,10 @@ pub(super) fn plan_in(
         ladder: false,
     }
 }
+
+/// Rings of a thin region's plan with nothing laid between the last one laid (or the wall
+/// below) and one that is: that one rests on nothing ([`plan_in`]).
+const DETACHED: usize = 4;
 
 /// Shortest piece of the contour (in widths) resting on the wall below that is laid before
 /// the loops ([`plan_in`]).
@@ -986,6 +1004,7 @@ fn ladder(
 fn order_loops(
     loops: Vec<Vec<Polyline>>,
     step: f64,
+    width: f64,
     stagger: f64,
     at: &mut [f64; 2],
 ) -> Vec<(usize, Polyline)> {
@@ -1001,11 +1020,28 @@ fn order_loops(
     let meets = |a: &Option<geo::Rect<f64>>, b: &Option<geo::Rect<f64>>| {
         crate::geometry::boxes_within(a.as_ref(), b.as_ref(), grow)
     };
-    // Supports of each piece: indices of pieces of the loop before that it may rest on.
+    // Supports of each piece: indices of pieces of the loop before that it may rest on. A
+    // piece with none there (the first loop past a strip the fronts crossed as rungs, kept
+    // a width clear of the loop area; a front past steps too short to print) rests on what
+    // lower loops laid near it: without, it was free from the start, and the nearest free
+    // piece is printed next, however far out.
     let supports: Vec<Vec<usize>> = (0..n)
         .map(|k| {
+            let i = pieces[k].0;
+            let next: Vec<usize> = (0..n)
+                .filter(|&j| pieces[j].0 + 1 == i && meets(&pieces[j].2, &pieces[k].2))
+                .collect();
+            if !next.is_empty() || i == 0 {
+                return next;
+            }
             (0..n)
-                .filter(|&j| pieces[j].0 + 1 == pieces[k].0 && meets(&pieces[j].2, &pieces[k].2))
+                .filter(|&j| {
+                    let (lower, box_j) = (pieces[j].0, &pieces[j].2);
+                    lower < i && {
+                        let reach = 2.0 * width + (i - lower) as f64 * step;
+                        crate::geometry::boxes_within(box_j.as_ref(), pieces[k].2.as_ref(), reach)
+                    }
+                })
                 .collect()
         })
         .collect();

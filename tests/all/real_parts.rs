@@ -2172,6 +2172,40 @@ fn a_wheel_s_rim_is_reached_along_its_spokes() {
     through_strips("wheel", "wheel", 12.0, 0.9);
 }
 
+/// The wheel by PrusaSlicer's own defaults with a 0.6 mm nozzle at 0.3 mm layers: the rim's
+/// loop area is too narrow for a loop of full width, so the region took the plan of a
+/// gradual overhang's thin ring, whose rings are offsets of the wall below: none fitted in
+/// the spokes, and the rim's rings, 12 mm out, were laid first, round the rim in air
+/// (177 mm in air on the floating layer). A ring laid with nothing laid between it and the
+/// wall below means the fronts must cross the spokes as rungs.
+#[test]
+fn a_wheel_s_rim_is_not_laid_before_its_spokes_with_a_wide_nozzle() {
+    let what = "wheel by PrusaSlicer's defaults, 0.6 mm nozzle";
+    let Some(d) = slice_defaults(
+        "wheel",
+        &["--nozzle-diameter", "0.6", "--layer-height", "0.3"],
+    ) else {
+        return;
+    };
+    let (new, rep) = rewrite(&d, BridgeMode::Auto);
+    let (before, after) = before_after(what, &d, &new);
+    let l = rep.rewrites.iter().map(|r| r.layer).min().expect(what);
+    assert_layer_held(what, &before, &after, l, 300.0, 100.0);
+    let (a0, a1) = (areas(&d), areas(&new));
+    let (s0, s1) = (a0[l - 1].unsigned_area(), a1[l - 1].unsigned_area());
+    // The rungs across the spokes stay a width clear of the rim's loops: 85 % of the area
+    // as sliced, and the layer above no worse for it.
+    assert!(
+        s1 >= 0.8 * s0,
+        "{what}: layer {l} prints {s1:.1} mm2, {s0:.1} as sliced"
+    );
+    let above = |r: &CheckReport| r.layers[l].in_air_mm;
+    assert!(
+        above(&after) <= above(&before) + 1.0,
+        "{what}: the layer above"
+    );
+}
+
 /// A hollow torus (no infill, one perimeter, no top layers) closing over its top: a ring
 /// one bead wide steps inward over air each layer. Pulled in from both sides for a gradual
 /// overhang's moved perimeter, nothing was left of it: the slicer's 176 mm of perimeter
