@@ -499,7 +499,7 @@ impl Support {
         if loops_ok && nesting(&mut sup.loops) {
             // Both searches read the outline's grid and skip the strands they do not want:
             // building a grid of each kind cost more than the skipping.
-            sup.flank_gap = Support::flanks(&sup.loops, &sup.grid);
+            sup.flank_gap = Support::flanks(&sup.loops, &sup.grid, opts.area.min_hole);
             let loop_len: Vec<f64> = sup
                 .loops
                 .iter()
@@ -519,9 +519,17 @@ impl Support {
     /// point between samples is at most half a step from one, so the gap grows and the reach
     /// shrinks by that much. The side matters: a loop whose inner perimeter runs outside it
     /// walls an empty inside, a hole of the area below that a roof above would close.
-    fn flanks(loops: &[Loop], outline: &Grid) -> Option<f64> {
+    fn flanks(loops: &[Loop], outline: &Grid, min_hole: f64) -> Option<f64> {
         let mut widest = 0.0f64;
         for (id, l) in loops.iter().enumerate() {
+            // A part's outline too small to hold a hole of the area needs no flank: every
+            // hole of its footprint inside it lies in its box less the bead's inner reach,
+            // narrower than `min_hole`, and is filled (a pin or a fin printed as one loop with
+            // nothing inside).
+            let side = (l.bbox[2] - l.bbox[0]).min(l.bbox[3] - l.bbox[1]);
+            if !l.hole && side - 2.0 * l.half_min * (1.0 - ARC_SHARE) < min_hole {
+                continue;
+            }
             // Material lies left of the way the loop runs when it runs counter-clockwise
             // round a part or clockwise round a hole.
             let side = l.material_side();
@@ -1305,6 +1313,19 @@ mod tests {
         let (ab, ah) = (printed_area(&b, &opts.area), printed_area(&h, &opts.area));
         assert!(!find_regions(&ab, &h, &ah, &opts).is_empty());
         assert!(verdict(wall, roof).is_some());
+    }
+
+    #[test]
+    fn a_pin_printed_as_one_loop_needs_no_flank() {
+        // A pin of 1.2 mm beside the part, its one loop round nothing: no hole of `min_hole`
+        // fits inside it.
+        let mut v = part(5.0, 2, true);
+        v.push(path(Role::ExternalPerimeter, &square(20.0, 0.6)));
+        assert_eq!(verdict(v.clone(), v.clone()), None);
+        // A wider one is a hollow: its inside is a hole the layer above may roof.
+        let mut w = part(5.0, 2, true);
+        w.push(path(Role::ExternalPerimeter, &square(20.0, 1.2)));
+        assert!(verdict(w.clone(), w).is_some_and(|why| why.contains("flanked")));
     }
 
     #[test]
