@@ -275,8 +275,8 @@ pub struct Support {
     /// layer's widest external perimeter and the tolerance at its height, at least [`CELL`]
     /// (a 0.6 mm nozzle at 0.3 mm layers needs 1.4 mm).
     reach: f64,
-    /// Whether the external loops are closed, their boxes apart and each flanked by an inner
-    /// perimeter within the gap given (mm); `None` when they are not.
+    /// Whether the external loops are closed, their boxes apart and each flanked by a bead
+    /// within the gap given (mm, [`Support::flanks`]); `None` when they are not.
     flank_gap: Option<f64>,
     widest_external: f64,
     /// Half the widest outline strand (mm).
@@ -499,12 +499,12 @@ impl Support {
         if loops_ok && nesting(&mut sup.loops) {
             // Both searches read the outline's grid and skip the strands they do not want:
             // building a grid of each kind cost more than the skipping.
-            sup.flank_gap = Support::flanks(&sup.loops, &sup.grid, opts.area.min_hole);
             let loop_len: Vec<f64> = sup
                 .loops
                 .iter()
                 .map(|l| super::polyline_length(&l.pts))
                 .collect();
+            sup.flank_gap = Support::flanks(&sup.loops, &loop_len, &sup.grid, opts.area.min_hole);
             let sides: Vec<f64> = sup.loops.iter().map(Loop::material_side).collect();
             sup.approach = Support::closest_approach(&sup.grid, &loop_len, &sides, sup.reach);
         }
@@ -519,7 +519,7 @@ impl Support {
     /// point between samples is at most half a step from one, so the gap grows and the reach
     /// shrinks by that much. The side matters: a loop whose inner perimeter runs outside it
     /// walls an empty inside, a hole of the area below that a roof above would close.
-    fn flanks(loops: &[Loop], outline: &Grid, min_hole: f64) -> Option<f64> {
+    fn flanks(loops: &[Loop], loop_len: &[f64], outline: &Grid, min_hole: f64) -> Option<f64> {
         let mut widest = 0.0f64;
         for (id, l) in loops.iter().enumerate() {
             // A part's outline too small to hold a hole of the area needs no flank: every
@@ -533,7 +533,7 @@ impl Support {
             // Material lies left of the way the loop runs when it runs counter-clockwise
             // round a part or clockwise round a hole.
             let side = l.material_side();
-            let total = super::polyline_length(&l.pts);
+            let total = loop_len.get(id).copied().unwrap_or(0.0);
             let mut last: Option<usize> = None;
             let mut at = 0.0;
             for (w, &he) in l.pts.windows(2).zip(&l.halves) {
