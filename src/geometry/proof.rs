@@ -1751,6 +1751,71 @@ mod tests {
     }
 
     #[test]
+    fn random_thin_bars_walled_by_one_loop_never_hide_a_region_from_the_proof() {
+        // Bars 0.6 to 3.6 mm wide and 2 to 14 mm long, each a single external loop (its far
+        // side the only bead on its material side) with nothing, a perimeter or infill
+        // inside, two of them 0.1 to 2 mm apart; above: the same, a roof over the first's
+        // inside, the first widened or narrowed. `verdict` asserts that the exact path finds
+        // nothing wherever the proof holds.
+        let mut next = crate::layers::testing::xorshift(0x6a09_e667_f3bc_c908);
+        let mut rand = move || (next() >> 11) as f64 / (1u64 << 53) as f64;
+        let rect = |x0: f64, y0: f64, w: f64, l: f64| {
+            vec![
+                [x0, y0],
+                [x0 + w, y0],
+                [x0 + w, y0 + l],
+                [x0, y0 + l],
+                [x0, y0],
+            ]
+        };
+        // (x, width, length, inside: 0 nothing, 1 a perimeter, 2 infill rows)
+        let draw = |bars: &[(f64, f64, f64, u32)], roof: bool| {
+            let mut v = Vec::new();
+            for (k, &(x, w, l, inside)) in bars.iter().enumerate() {
+                v.push(path(Role::ExternalPerimeter, &rect(x, 5.0, w, l)));
+                let (iw, il) = (w - 0.86, l - 0.86);
+                if inside == 1 && iw > 0.05 && il > 0.05 {
+                    v.push(path(Role::Perimeter, &rect(x + 0.43, 5.43, iw, il)));
+                }
+                let rows = |role: Role, step: f64, v: &mut Vec<Path>| {
+                    let mut y = 5.0 + step;
+                    while y < 5.0 + l - step / 2.0 {
+                        v.push(path(role, &[[x, y], [x + w, y]]));
+                        y += step;
+                    }
+                };
+                if inside == 2 {
+                    rows(Role::Infill, 1.0, &mut v);
+                }
+                if roof && k == 0 {
+                    rows(Role::SolidInfill, 0.45, &mut v);
+                }
+            }
+            v
+        };
+        let mut proven = 0;
+        for _ in 0..1000 {
+            let bar = |x: f64, r: &mut dyn FnMut() -> f64| {
+                (x, 0.6 + r() * 3.0, 2.0 + r() * 12.0, (r() * 3.0) as u32)
+            };
+            let a = bar(5.0, &mut rand);
+            let gap = 0.1 + rand() * 1.9;
+            let b = bar(a.0 + a.1 + gap, &mut rand);
+            let below = draw(&[a, b], false);
+            let change = rand();
+            let mut up = a;
+            if (0.3..0.6).contains(&change) {
+                up.1 = (up.1 + (rand() - 0.5) * 1.0).max(0.5);
+            }
+            let here = draw(&[up, b], change < 0.3);
+            if verdict(below, here).is_none() {
+                proven += 1;
+            }
+        }
+        assert!(proven > 50, "{proven}");
+    }
+
+    #[test]
     fn a_post_in_a_hole_is_left_to_the_exact_path() {
         let mut ring = tube(3.0, false);
         ring.push(path(Role::ExternalPerimeter, &square(10.0, 1.0)));
