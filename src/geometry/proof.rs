@@ -1205,6 +1205,22 @@ mod tests {
         vec![[a, a], [b, a], [b, b], [a, b], [a, a]]
     }
 
+    /// A closed polygon of `n` sides round `c`, its corners `r` from it.
+    fn circle(c: [f64; 2], r: f64, n: usize) -> Vec<[f64; 2]> {
+        (0..=n)
+            .map(|k| {
+                let a = std::f64::consts::TAU * (k % n) as f64 / n as f64;
+                [c[0] + r * a.cos(), c[1] + r * a.sin()]
+            })
+            .collect()
+    }
+
+    /// Numbers uniform in [0, 1), the same run for the same `seed`.
+    fn uniform(seed: u64) -> impl FnMut() -> f64 {
+        let mut next = crate::layers::testing::xorshift(seed);
+        move || (next() >> 11) as f64 / (1u64 << 53) as f64
+    }
+
     /// A square part centred at (10, 10): external loop of half side `half`, inner loops
     /// `perimeters - 1`, and infill lines across the inside when `infill`.
     fn part(half: f64, perimeters: usize, infill: bool) -> Vec<Path> {
@@ -1295,13 +1311,10 @@ mod tests {
     fn a_round_single_wall_is_not_its_own_flank() {
         // A single round wall with nothing inside: its own pieces a few tenths along lie on
         // its material side, yet its inside is a hole, and a roof over it is over air.
-        let ring: Vec<[f64; 2]> = (0..=96)
-            .map(|k| {
-                let a = std::f64::consts::TAU * (k % 96) as f64 / 96.0;
-                [10.0 + 3.0 * a.cos(), 10.0 + 3.0 * a.sin()]
-            })
-            .collect();
-        let wall = vec![path(Role::ExternalPerimeter, &ring)];
+        let wall = vec![path(
+            Role::ExternalPerimeter,
+            &circle([10.0, 10.0], 3.0, 96),
+        )];
         let mut roof = wall.clone();
         for k in 0..13 {
             let y = 7.3 + 0.45 * k as f64;
@@ -1517,8 +1530,7 @@ mod tests {
     #[test]
     fn random_holes_never_hide_a_region_from_the_proof() {
         // `verdict` asserts that the exact path finds nothing wherever the proof holds.
-        let mut next = crate::layers::testing::xorshift(0x2545_f491_4f6c_dd1d);
-        let mut rand = move || (next() >> 11) as f64 / (1u64 << 53) as f64;
+        let mut rand = uniform(0x2545_f491_4f6c_dd1d);
         let mut proven = 0;
         for _ in 0..1000 {
             let n = 6 + (rand() * 40.0) as usize;
@@ -1554,8 +1566,7 @@ mod tests {
         // them) and a second part 0.2 to 1.8 mm away (across air), the layer above as below or with a hole
         // narrowing, a lid over a hole, the second part grown or moved: `verdict` asserts
         // that the exact path finds nothing wherever the proof holds.
-        let mut next = crate::layers::testing::xorshift(0x9e37_79b9_7f4a_7c15);
-        let mut rand = move || (next() >> 11) as f64 / (1u64 << 53) as f64;
+        let mut rand = uniform(0x9e37_79b9_7f4a_7c15);
         let rect = |c: [f64; 2], h: [f64; 2]| {
             let (a, b) = ([c[0] - h[0], c[1] - h[1]], [c[0] + h[0], c[1] + h[1]]);
             vec![
@@ -1638,16 +1649,7 @@ mod tests {
         // second such part 0.1 to 1.6 mm away; above: the same, a roof over the inside, the
         // part grown or shrunk. `verdict` asserts that the exact path finds nothing wherever
         // the proof holds.
-        let mut next = crate::layers::testing::xorshift(0x2545_f491_4f6c_dd1d);
-        let mut rand = move || (next() >> 11) as f64 / (1u64 << 53) as f64;
-        let ring = |c: [f64; 2], r: f64, n: usize| -> Vec<[f64; 2]> {
-            (0..=n)
-                .map(|k| {
-                    let a = std::f64::consts::TAU * (k % n) as f64 / n as f64;
-                    [c[0] + r * a.cos(), c[1] + r * a.sin()]
-                })
-                .collect()
-        };
+        let mut rand = uniform(0x2545_f491_4f6c_dd1d);
         struct Round {
             c: [f64; 2],
             r: f64,
@@ -1657,7 +1659,7 @@ mod tests {
             cuts: Vec<(usize, f64)>,
         }
         let draw = |p: &Round, roof: bool, v: &mut Vec<Path>| {
-            let pts = ring(p.c, p.r, p.n);
+            let pts = circle(p.c, p.r, p.n);
             let mut from = 0;
             for &(to, width) in &p.cuts {
                 let to = to.clamp(from + 1, p.n);
@@ -1677,7 +1679,7 @@ mod tests {
             for k in 1..p.walls {
                 let r = p.r - 0.43 * k as f64;
                 if r > 0.3 {
-                    v.push(path(Role::Perimeter, &ring(p.c, r, p.n)));
+                    v.push(path(Role::Perimeter, &circle(p.c, r, p.n)));
                 }
             }
             let inner = p.r - 0.43 * p.walls as f64;
@@ -1757,8 +1759,7 @@ mod tests {
         // inside, two of them 0.1 to 2 mm apart; above: the same, a roof over the first's
         // inside, the first widened or narrowed. `verdict` asserts that the exact path finds
         // nothing wherever the proof holds.
-        let mut next = crate::layers::testing::xorshift(0x6a09_e667_f3bc_c908);
-        let mut rand = move || (next() >> 11) as f64 / (1u64 << 53) as f64;
+        let mut rand = uniform(0x6a09_e667_f3bc_c908);
         let rect = |x0: f64, y0: f64, w: f64, l: f64| {
             vec![
                 [x0, y0],
