@@ -931,7 +931,8 @@ fn at_most_a_tenth_longer(what: &str, before: &CheckReport, after: &CheckReport)
 /// post, whose first fronts are slivers too small to print. Both wings get their loops (the
 /// growth stopped after two empty fronts: one wing of a Cura slice got none, and the layer
 /// kept 31 mm in air), and a wing's loops, short strokes across it, are joined by extruded
-/// connectors (hops between them were 19 % of their length).
+/// connectors (hops between them were 19 % of their length). A wing too narrow for a loop
+/// across its loop area gets a ladder, by either slicer.
 #[test]
 fn both_wings_of_a_cylinder_on_a_post_get_loops() {
     let settings = [
@@ -940,32 +941,40 @@ fn both_wings_of_a_cylinder_on_a_post_get_loops() {
         "wall_line_count=3",
         "infill_pattern=triangles",
     ];
-    let Some(d) = slice_cura(&part("t_cylinders"), "prusa_i3_mk3", &settings) else {
-        return;
-    };
-    let (new, rep) = rewrite(&d, BridgeMode::Keep);
-    assert!(
-        rep.rewrites.iter().all(|r| r.loops > 0 || r.gradual),
-        "{:?}",
-        rep.rewrites
+    // PrusaSlicer at 0.12 mm cuts each wing 1.3 mm wide: room for a contour round a thread
+    // of loop area 0.23 mm wide, none for a loop across it; the contour and perimeter were
+    // laid along the wing in air (30.8 mm on the layer) until the ladder took over.
+    let slices = by_both(
+        "t_cylinders",
+        &["--layer-height", "0.12"],
+        ("prusa_i3_mk3", &settings),
+        [
+            "t_cylinders by PrusaSlicer (0.12 mm)",
+            "t_cylinders by Cura (0.12 mm)",
+        ],
     );
-    held_up(
-        "t_cylinders by Cura (0.12 mm)",
-        &check(&d),
-        &check(&new),
-        20.0,
-    );
-    // Travel between a region's strands, but for one crossing (from one wing to the other).
-    for r in rep.rewrites.iter().filter(|r| !r.gradual) {
-        let beyond = r.inner_travel_mm - r.longest_inner_travel_mm;
+    for (what, d) in slices {
+        let (new, rep) = rewrite(&d, BridgeMode::Keep);
         assert!(
-            beyond <= 0.10 * r.written_length_mm && r.connectors > 0,
-            "region {}: {:.1} mm of travel between loops for {:.1} mm of them, {} connectors",
-            r.region,
-            beyond,
-            r.written_length_mm,
-            r.connectors
+            rep.rewrites.iter().all(|r| r.loops > 0 || r.gradual),
+            "{what}: {:?}",
+            rep.rewrites
         );
+        held_up(what, &check(&d), &check(&new), 20.0);
+        // Travel between a region's strands, but for one crossing (from one wing to the
+        // other).
+        for r in rep.rewrites.iter().filter(|r| !r.gradual) {
+            let beyond = r.inner_travel_mm - r.longest_inner_travel_mm;
+            assert!(
+                beyond <= 0.10 * r.written_length_mm && r.connectors > 0,
+                "{what}: region {}: {:.1} mm of travel between loops for {:.1} mm of them, \
+                 {} connectors",
+                r.region,
+                beyond,
+                r.written_length_mm,
+                r.connectors
+            );
+        }
     }
 }
 
@@ -2195,7 +2204,9 @@ fn a_wheel_s_rim_is_reached_along_its_spokes() {
 /// gradual overhang's thin ring, whose rings are offsets of the wall below: none fitted in
 /// the spokes, and the rim's rings, 12 mm out, were laid first, round the rim in air
 /// (177 mm in air on the floating layer). A ring laid with nothing laid between it and the
-/// wall below means the fronts must cross the spokes as rungs.
+/// wall below means the fronts must cross the spokes as rungs; those loops left 78 mm in air
+/// where they met between the spokes, and the rim now takes the ladder, whose rungs cover
+/// more of it (0 mm).
 #[test]
 fn a_wheel_s_rim_is_not_laid_before_its_spokes_with_a_wide_nozzle() {
     let what = "wheel by PrusaSlicer's defaults, 0.6 mm nozzle";
@@ -2208,11 +2219,10 @@ fn a_wheel_s_rim_is_not_laid_before_its_spokes_with_a_wide_nozzle() {
     let (new, rep) = rewrite(&d, BridgeMode::Auto);
     let (before, after) = before_after(what, &d, &new);
     let l = rep.rewrites.iter().map(|r| r.layer).min().expect(what);
-    assert_layer_held(what, &before, &after, l, 300.0, 100.0);
+    assert_layer_held(what, &before, &after, l, 300.0, 5.0);
     let (a0, a1) = (areas(&d), areas(&new));
     let (s0, s1) = (a0[l - 1].unsigned_area(), a1[l - 1].unsigned_area());
-    // The rungs across the spokes stay a width clear of the rim's loops: 85 % of the area
-    // as sliced, and the layer above no worse for it.
+    // The layer keeps what the slicer printed, and the layer above is no worse for it.
     assert!(
         s1 >= 0.8 * s0,
         "{what}: layer {l} prints {s1:.1} mm2, {s0:.1} as sliced"
