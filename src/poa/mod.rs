@@ -895,21 +895,24 @@ pub(super) fn plan_in(
     // A narrow cantilever whose loop area is a thread along it (a lying cylinder's first
     // layer at 0.12 mm, 1.3 mm wide and 16 mm out from its post: room for a contour round a
     // 0.23 mm thread, none for a loop across it) got its contour and perimeter laid along
-    // it in air: where the loops cover less of the zone than a ladder's rungs would, and
-    // less than half of it, the ladder is taken.
+    // it in air. Where the loops leave part of the zone beyond the contour and perimeter
+    // that would lean on them (a rim on spokes too narrow for a loop: a third of it), and
+    // a ladder's rungs cover more, the ladder is taken.
     if region.max_distance > CANTILEVER_REACH {
-        let covered = |strands: &[Strand]| {
+        // Share of the zone within `reach` of the loops' beads.
+        let covered = |strands: &[Strand], reach: f64| {
             let loops = strands.iter().filter(|s| s.kind == StrandKind::Loop);
-            let beads =
-                crate::geometry::area::Strands::of_lines(loops.map(|s| (&s.points[..], s.width)))
-                    .buffer();
-            intersection(&zone, &beads).unsigned_area()
+            let beads = crate::geometry::area::Strands::of_lines(
+                loops.map(|s| (&s.points[..], s.width + 2.0 * reach)),
+            )
+            .buffer();
+            intersection(&zone, &beads).unsigned_area() / zone.unsigned_area()
         };
-        let by_loops = covered(&strands);
-        if by_loops < COVERED_SHARE * zone.unsigned_area() {
+        let by_loops = covered(&strands, contour_at + we / 2.0);
+        if by_loops < COVERED_SHARE {
             let front = offset(below_loc, step - w / 2.0);
             if let Some(plan) = ladder(&zone, &front, w, step, start) {
-                if covered(&plan.strands) > by_loops {
+                if covered(&plan.strands, 0.0) > by_loops {
                     return plan;
                 }
             }
@@ -924,9 +927,10 @@ pub(super) fn plan_in(
     }
 }
 
-/// Least share of a narrow cantilever's zone its loops cover before its [`ladder`] is tried
-/// instead ([`plan_in`]).
-const COVERED_SHARE: f64 = 0.5;
+/// Least share of a narrow cantilever's zone its loops, with the contour and perimeter along
+/// them, cover before its [`ladder`] is tried instead ([`plan_in`]): a plan that holds
+/// covers all of it, one whose loops stop short (a rim on narrow spokes) 64 % or less.
+const COVERED_SHARE: f64 = 0.9;
 
 /// Rings of a thin region's plan with nothing laid between the last one laid (or the wall
 /// below) and one that is: that one rests on nothing ([`plan_in`]).

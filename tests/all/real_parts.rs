@@ -2245,6 +2245,34 @@ fn a_wheel_s_rim_is_not_laid_before_its_spokes_with_a_wide_nozzle() {
     );
 }
 
+/// A ring held by one bar through its post, the bar 1.5 mm wide: with a 0.6 mm nozzle the
+/// loops, grown along the bar, left the ring's far sides to its contour and perimeter (22 mm
+/// in air on its first layer); the ring now takes the ladder, out along the bar and round
+/// the ring both ways. By PrusaSlicer's samples' settings and Cura the loops hold it.
+#[test]
+fn a_ring_on_a_bar_through_its_post_is_held_from_the_bar() {
+    let mut slices = Vec::new();
+    if let Some(d) = slice_defaults(
+        "ring_hang",
+        &["--nozzle-diameter", "0.6", "--layer-height", "0.3"],
+    ) {
+        slices.push(("ring on a bar, 0.6 mm nozzle".to_string(), d));
+    }
+    slices.extend(slices_with("ring_hang", &[]));
+    for (what, d) in slices {
+        let (new, _) = rewrite(&d, BridgeMode::Auto);
+        let (before, after) = before_after(&what, &d, &new);
+        held_up(&what, &before, &after, 20.0);
+        assert!(
+            after.in_air_mm <= 2.0 && after.time_s <= 1.3 * before.time_s,
+            "{what}: {:.1} mm in air, {:.0} s ({:.0} as sliced)",
+            after.in_air_mm,
+            after.time_s,
+            before.time_s
+        );
+    }
+}
+
 /// A hollow torus (no infill, one perimeter, no top layers) closing over its top: a ring
 /// one bead wide steps inward over air each layer. Pulled in from both sides for a gradual
 /// overhang's moved perimeter, nothing was left of it: the slicer's 176 mm of perimeter
