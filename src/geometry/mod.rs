@@ -11,6 +11,7 @@
 //! mm.
 
 pub mod area;
+pub mod coverage;
 pub mod detect;
 pub mod proof;
 pub mod regions;
