@@ -442,7 +442,9 @@ pub(super) fn plan_in(
             perimeter_area = union(&perimeter_area, &MultiPolygon::new(features));
         }
     }
-    let front = offset(below_loc, step - w / 2.0);
+    // Where loop 1's centre goes: the layer below grown by a step less half a width. Every
+    // plan below starts from it (rings, fronts, rungs).
+    let front1 = offset(below_loc, step - w / 2.0);
     if thin {
         // Where the perimeter is within an eighth of a width of biting like loop 1, it is
         // moved there: a marginal slope (60 degrees at 0.2 mm) then rests on the layer below
@@ -465,7 +467,7 @@ pub(super) fn plan_in(
             &perimeter_area,
             &offset(&offset(&ext, -(we / 2.0 + inset + round)), round),
         );
-        let biting = intersection(&pulled, &front);
+        let biting = intersection(&pulled, &front1);
         let limit = offset(&ext, -(we / 2.0 + inset + w / 8.0));
         // Where the two lie a sliver apart (the wall below on the ring's inner side, a hollow
         // part's void beyond it) they are one: the sliver's two edges were two strands
@@ -531,7 +533,7 @@ pub(super) fn plan_in(
         let rings_most = (extent.min(2000.0) / after_half).ceil() as usize + 2;
         for k in 1..=rings_most {
             let ring = if k == 1 {
-                rings(&front)
+                rings(&front1)
             } else {
                 rings(&growth.at(next_at))
             };
@@ -610,7 +612,7 @@ pub(super) fn plan_in(
             }
         }
         if loops == 0 && region.max_distance > CANTILEVER_REACH {
-            if let Some(plan) = ladder(&zone, &front, w, step, start) {
+            if let Some(plan) = ladder(&zone, &front1, w, step, start) {
                 return plan;
             }
         }
@@ -687,7 +689,7 @@ pub(super) fn plan_in(
     // Only the front within a step of `inner` can grow into it: the rest of sectA's outline
     // is left out, which keeps every step's offset and cut small.
     let near = offset(&inner, 2.0 * step + w);
-    let first = intersection(&front, &near);
+    let first = intersection(&front1, &near);
     let mut allowed = union(&inner, &first);
     // The strips (see below) added to where fronts grow; with no loop printed yet, the fronts
     // also start where the strips leave the wall below.
@@ -699,10 +701,7 @@ pub(super) fn plan_in(
         *allowed = union(allowed, &strip);
         if loops.iter().all(|l| l.is_empty()) {
             let near = offset(&strip, 2.0 * step + w);
-            union(
-                from,
-                &intersection(&offset(below_loc, step - w / 2.0), &near),
-            )
+            union(from, &intersection(&front1, &near))
         } else {
             from.clone()
         }
@@ -845,7 +844,7 @@ pub(super) fn plan_in(
         };
         // Where the perimeter hangs farther (a flatter face), the full loop (see
         // [`full_stretches`]).
-        let full_ring = clip_lines(&rings(&offset(below_loc, step - w / 2.0)), &strip, true);
+        let full_ring = clip_lines(&rings(&front1), &strip, true);
         let full_room = offset(&perimeter_area, -HALF_LOOP_AT * w);
         let (full, half) =
             full_stretches(&full_ring, clip_lines(&ring, &strip, true), &full_room, w);
@@ -911,8 +910,7 @@ pub(super) fn plan_in(
         };
         let by_loops = covered(&strands, contour_at + we / 2.0);
         if by_loops < COVERED_SHARE {
-            let front = offset(below_loc, step - w / 2.0);
-            if let Some(plan) = ladder(&zone, &front, w, step, start) {
+            if let Some(plan) = ladder(&zone, &front1, w, step, start) {
                 if covered(&plan.strands, 0.0) > by_loops {
                     return plan;
                 }
