@@ -3,24 +3,20 @@
 //! Input: a [`MultiPolygon`] (the area) and polylines, each with a reach (mm). Output: the
 //! share of the area's sample points that lie within some polyline's reach, the points on a
 //! square grid whose spacing is given (coarsened so that at most [`MAX_SAMPLES`] are taken).
-//! Invariants: no polygon boolean or offset: memory and time grow with the samples and the
-//! segments near them, never with how the strands' footprints overlap (a big cap's 140
+//! Invariants: no polygon boolean or offset (the segments go into the proof's grid, which
+//! bounds its cells): memory and time grow with the samples and the segments near them, never with how the strands' footprints overlap (a big cap's 140
 //! overlapping loops cost the stroke buffer 70 ms, the sampling a fraction of that). The
 //! answer is an estimate within the grid's resolution: use it to tell a plan that covers
 //! its zone from one that leaves a good part of it, not for areas.
 
 use geo::{BoundingRect, MultiPolygon};
 
+use super::proof::{dist2, Grid, Seg};
 use super::RingIndex;
+use crate::layers::Role;
 
 /// Most sample points taken over the area's box.
 const MAX_SAMPLES: f64 = 40_000.0;
-
-/// Most cells the segment grid holds.
-const MAX_CELLS: f64 = 65_536.0;
-
-/// A piece of a polyline in the grid: its ends and its reach squared.
-type Piece = ([f64; 2], [f64; 2], f64);
 
 /// Share (0 to 1) of `area` within its reach of one of `lines` (each polyline with its reach,
 /// mm), sampled every `spacing` mm. An area with no sample point inside gives 1.
@@ -34,55 +30,24 @@ pub fn share_within(area: &MultiPolygon<f64>, lines: &[(&[[f64; 2]], f64)], spac
         return 1.0;
     }
     let spacing = spacing.max((w * h / MAX_SAMPLES).sqrt());
-    let reach = lines
+    // The polylines' segments in the proof's grid, each with its reach as its half width.
+    let segs: Vec<Seg> = lines
         .iter()
-        .map(|l| l.1)
-        .filter(|r| r.is_finite())
-        .fold(0.0_f64, f64::max)
-        .max(spacing);
-    // Segments bucketed in cells no smaller than twice the largest reach: a sample reads the
-    // cell it lies in, which holds every segment within reach of it.
-    let cell = (2.0 * reach).max((w * h / MAX_CELLS).sqrt());
-    let (nx, ny) = (
-        (w / cell).floor() as usize + 1,
-        (h / cell).floor() as usize + 1,
-    );
-    let col = |x: f64| (((x - lo.x) / cell).floor().max(0.0) as usize).min(nx - 1);
-    let row = |y: f64| (((y - lo.y) / cell).floor().max(0.0) as usize).min(ny - 1);
-    let mut cells: Vec<Vec<Piece>> = vec![Vec::new(); nx * ny];
-    for &(pts, r) in lines {
-        let r = r.clamp(0.0, reach);
-        for s in pts.windows(2) {
-            let (p, e) = (s[0], s[1]);
-            if !p.iter().chain(&e).all(|v| v.is_finite()) {
-                continue;
-            }
-            // In pieces no longer than a cell, each in the cells of its own box: a long
-            // diagonal's box would hold thousands of cells it never comes near.
-            let len = (e[0] - p[0]).hypot(e[1] - p[1]);
-            let n = ((len / cell).ceil() as usize).clamp(1, 1 << 16);
-            for k in 0..n {
-                let at = |t: f64| [p[0] + t * (e[0] - p[0]), p[1] + t * (e[1] - p[1])];
-                let (a, c) = (at(k as f64 / n as f64), at((k + 1) as f64 / n as f64));
-                let (x0, x1) = (a[0].min(c[0]) - r, a[0].max(c[0]) + r);
-                let (y0, y1) = (a[1].min(c[1]) - r, a[1].max(c[1]) + r);
-                if x1 < lo.x || y1 < lo.y || x0 > hi.x || y0 > hi.y {
-                    continue;
-                }
-                for j in row(y0)..=row(y1) {
-                    for i in col(x0)..=col(x1) {
-                        cells[j * nx + i].push((a, c, r * r));
-                    }
-                }
-            }
-        }
-    }
-    let near = |q: [f64; 2]| {
-        cells[row(q[1]) * nx + col(q[0])].iter().any(|&(a, c, r2)| {
-            let m = super::nearest_on_segment(q, a, c).1;
-            (m[0] - q[0]).powi(2) + (m[1] - q[1]).powi(2) <= r2
+        .filter(|(_, r)| r.is_finite() && *r >= 0.0)
+        .flat_map(|&(pts, r)| {
+            pts.windows(2).map(move |s| Seg {
+                a: s[0],
+                b: s[1],
+                half: r,
+                role: Role::Unknown,
+                loop_at: None,
+            })
         })
-    };
+        .filter(|s| s.a.iter().chain(&s.b).all(|v| v.is_finite()))
+        .collect();
+    let reach = segs.iter().map(|s| s.half).fold(0.0_f64, f64::max);
+    let grid = Grid::new(segs);
+    let near = |q: [f64; 2]| grid.any_near(q, reach, |s| dist2(q, s) <= s.half * s.half);
     let inside = RingIndex::new(area);
     let (mut total, mut hit) = (0usize, 0usize);
     let rows = (h / spacing).floor() as usize + 1;
