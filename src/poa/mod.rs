@@ -335,20 +335,63 @@ fn notches_filled(area: MultiPolygon<f64>, below: &MultiPolygon<f64>, w: f64) ->
         return area;
     }
     let near = offset(below, w);
+    let near_share = shares_within(&added, &near);
     let kept: Vec<geo::Polygon<f64>> = added
         .0
         .into_iter()
-        .filter(|p| {
+        .zip(near_share)
+        .filter(|(p, near)| {
             let a = p.unsigned_area();
-            a > 0.0
-                && intersection(&MultiPolygon::new(vec![p.clone()]), &near).unsigned_area()
-                    >= 0.5 * a
+            a > 0.0 && *near >= 0.5 * a
         })
+        .map(|(p, _)| p)
         .collect();
     if kept.is_empty() {
         return area;
     }
     union(&area, &MultiPolygon::new(kept))
+}
+
+/// The area of each polygon of `parts` (disjoint, as a boolean's output is) that lies in
+/// `within`. One boolean for all the parts, its pieces then credited to the part holding
+/// them: a hollow torus's bottom, its solid infill ending in a saw along the void, has
+/// hundreds of notches, and a boolean of each with the whole layer below took 100 ms a
+/// region. Parts meeting at a corner can come out of the boolean as one piece: those parts
+/// are measured on their own.
+fn shares_within(parts: &MultiPolygon<f64>, within: &MultiPolygon<f64>) -> Vec<f64> {
+    use geo::{BoundingRect, Intersects};
+    let mut share = vec![Some(0.0); parts.0.len()];
+    let index = crate::geometry::BoxIndex::new(parts);
+    for piece in &intersection(parts, within).0 {
+        let Some(b) = piece.bounding_rect() else {
+            continue;
+        };
+        let mut holders = index
+            .meeting([b.min().x, b.min().y], [b.max().x, b.max().y])
+            .filter(|&i| parts.0[i].intersects(piece));
+        match (holders.next(), holders.next()) {
+            (Some(i), None) => {
+                if let Some(s) = &mut share[i] {
+                    *s += piece.unsigned_area();
+                }
+            }
+            (Some(i), Some(j)) => {
+                for k in [i, j].into_iter().chain(holders) {
+                    share[k] = None;
+                }
+            }
+            (None, _) => {}
+        }
+    }
+    share
+        .into_iter()
+        .zip(&parts.0)
+        .map(|(s, p)| {
+            s.unwrap_or_else(|| {
+                intersection(&MultiPolygon::new(vec![p.clone()]), within).unsigned_area()
+            })
+        })
+        .collect()
 }
 
 /// [`plan`] from the [`windows`] made for `region` already.
@@ -737,6 +780,8 @@ pub(super) fn plan_in(
     // The front and the loop count where the fronts last began to print nothing.
     let mut empty_since: Option<(MultiPolygon<f64>, usize)> = None;
     let mut loops: Vec<Vec<Polyline>> = Vec::new();
+    // (loop index, piece) of the pieces too short to lay by themselves.
+    let mut shorts: Vec<(usize, Polyline)> = Vec::new();
     let mut held = 0;
     let mut front = first;
     // The region's reach is measured to the nearest material below, which may be another
@@ -750,11 +795,16 @@ pub(super) fn plan_in(
     while steps < 2 * max_loops {
         steps += 1;
         let ring = rings(&front);
-        let inside = |area: &MultiPolygon<f64>| -> Vec<Polyline> {
-            clip_lines(&ring, area, true)
+        // Pieces shorter than half a width are not laid, unless a piece of the next loop
+        // rests on nothing else (see below): those of a quarter width or more are kept aside.
+        let shorts_before = shorts.len();
+        let mut inside = |area: &MultiPolygon<f64>| -> Vec<Polyline> {
+            let (long, short): (Vec<Polyline>, Vec<Polyline>) = clip_lines(&ring, area, true)
                 .into_iter()
-                .filter(|p| polyline_length(p) >= w / 2.0)
-                .collect()
+                .filter(|p| polyline_length(p) >= w / 4.0)
+                .partition(|p| polyline_length(p) >= w / 2.0);
+            shorts.extend(short.into_iter().map(|p| (loops.len(), p)));
+            long
         };
         let mut pieces = inside(&strictly_inner);
         if let Some(r) = &rungs {
@@ -781,13 +831,18 @@ pub(super) fn plan_in(
             if left && crossing && !widened {
                 let (from, n) = empty_since.take().expect("crossing");
                 loops.truncate(n);
+                shorts.retain(|(i, _)| *i < n);
                 front = widen(&from, &mut allowed, &loops);
                 widened = true;
                 rungs = Some(rungs_in(&allowed));
                 continue;
             }
         }
-        held += points_of(&pieces);
+        held += points_of(&pieces)
+            + shorts[shorts_before..]
+                .iter()
+                .map(|(_, p)| p.len())
+                .sum::<usize>();
         if held > PLAN_POINTS {
             return no_plan(MultiPolygon::new(Vec::new()));
         }
@@ -806,6 +861,7 @@ pub(super) fn plan_in(
             } else {
                 let (from, n) = empty_since.take().unwrap_or((front.clone(), loops.len()));
                 loops.truncate(n);
+                shorts.retain(|(i, _)| *i < n);
                 front = widen(&from, &mut allowed, &loops);
                 rungs = Some(rungs_in(&allowed));
                 continue;
@@ -822,6 +878,8 @@ pub(super) fn plan_in(
     while loops.last().is_some_and(|l| l.is_empty()) {
         loops.pop();
     }
+    shorts.retain(|(i, _)| *i < loops.len());
+    keep_needed_shorts(&mut loops, shorts, step);
 
     let mut at = start;
     // A thin strip of the zone that no loop reaches (a chamfer's ring running into a hole's
@@ -1028,6 +1086,42 @@ fn ladder(
         with_perimeter: false,
         ladder: true,
     })
+}
+
+/// Puts back into `loops` the short pieces (loop index, piece) that a piece of the next loop
+/// needs: one with no piece of the loop before near it (within [`order_loops`]'s reach of a
+/// support) takes that loop's short pieces near it, and so on down. Where a bar meets a ring
+/// hanging from it, the fronts' first pieces across the bar are a little shorter than half a
+/// width; dropped, the next loop's first rung there lay 0.6 mm past the wall below with
+/// nothing under it (0.5 mm in air).
+fn keep_needed_shorts(loops: &mut [Vec<Polyline>], mut shorts: Vec<(usize, Polyline)>, step: f64) {
+    let grow = 1.5 * step;
+    let near = |a: &Polyline, b: &Polyline| {
+        let (ba, bb) = (
+            crate::geometry::points_box(a),
+            crate::geometry::points_box(b),
+        );
+        crate::geometry::boxes_within(ba.as_ref(), bb.as_ref(), grow)
+    };
+    for i in (1..loops.len()).rev() {
+        if shorts.is_empty() {
+            break;
+        }
+        let (before, from) = loops.split_at_mut(i);
+        let (below, this) = (&mut before[i - 1], &from[0]);
+        let alone: Vec<&Polyline> = this
+            .iter()
+            .filter(|p| !below.iter().any(|q| near(p, q)))
+            .collect();
+        if alone.is_empty() {
+            continue;
+        }
+        let (needed, rest): (Vec<_>, Vec<_>) = shorts
+            .into_iter()
+            .partition(|(k, q)| *k == i - 1 && alone.iter().any(|p| near(p, q)));
+        below.extend(needed.into_iter().map(|(_, q)| q));
+        shorts = rest;
+    }
 }
 
 /// Orders the loops' pieces (loop `i` at index `i`) so that each piece rests on what is
@@ -2468,6 +2562,59 @@ mod tests {
     const W: f64 = 0.45;
 
     #[test]
+    fn a_short_piece_goes_back_in_where_the_next_loop_would_rest_on_nothing() {
+        // Rungs across a bar 0.4 mm wide, a step (0.27 mm) apart, from a wall at x = 0:
+        // loop 0's rung at the bar's end is short (0.2 mm, kept aside), loop 1's and 2's
+        // are whole. Another short piece of loop 0 lies far off; one of loop 1 lies by a
+        // rung of loop 0 already.
+        let step = 0.27;
+        let rung = |x: f64, y0: f64, y1: f64| vec![[x, y0], [x, y1]];
+        let mut loops = vec![
+            vec![rung(5.0, 10.0, 10.4)],
+            vec![rung(step, 0.0, 0.4), rung(5.0 + step, 10.0, 10.4)],
+            vec![rung(2.0 * step, 0.0, 0.4)],
+        ];
+        let shorts = vec![
+            (0, rung(0.0, 0.1, 0.3)),
+            (0, rung(30.0, 0.0, 0.2)),
+            (1, rung(5.0 + step, 10.5, 10.7)),
+        ];
+        keep_needed_shorts(&mut loops, shorts, step);
+        assert_eq!(loops[0].len(), 2, "{:?}", loops[0]);
+        assert_eq!(loops[0][1], rung(0.0, 0.1, 0.3));
+        assert_eq!(
+            loops[1].len(),
+            2,
+            "loop 1's rungs all rest on loop 0's: {:?}",
+            loops[1]
+        );
+        assert_eq!(loops[2].len(), 1);
+    }
+
+    #[test]
+    fn each_part_s_share_within_an_area_is_its_own_boolean_s() {
+        // Three notches: one half inside `within`, one whole, one outside; two more meeting
+        // at a corner, a quarter of each inside (the boolean's pieces meet there too).
+        let parts = mp(vec![
+            rect(0.0, 0.0, 1.0, 2.0),
+            rect(2.0, 0.0, 3.0, 1.0),
+            rect(5.0, 5.0, 6.0, 6.0),
+            rect(0.0, 4.0, 1.0, 5.0),
+            rect(1.0, 5.0, 2.0, 6.0),
+        ]);
+        let within = mp(vec![rect(-1.0, -1.0, 4.0, 1.0), rect(0.5, 4.5, 1.5, 5.5)]);
+        let got = shares_within(&parts, &within);
+        for (p, share) in parts.0.iter().zip(&got) {
+            let own = intersection(&mp(vec![p.clone()]), &within).unsigned_area();
+            assert!((share - own).abs() < 1e-9, "{share} vs {own}");
+        }
+        let want = [1.0, 1.0, 0.0, 0.25, 0.25];
+        for (g, w) in got.iter().zip(want) {
+            assert!((g - w).abs() < 0.02, "{got:?}");
+        }
+    }
+
+    #[test]
     fn gaps_smaller_than_a_bead_are_no_holes_to_plan_round() {
         // A 10 x 10 area with a 0.3 mm gap (where two walls meet), a 1 mm hole and a
         // 0.3 x 3 mm slot: the gap is filled, the hole and the slot stay.
@@ -2827,9 +2974,10 @@ mod tests {
                 let on_earlier = dist_to(p, &before) <= W / 2.0 + W / 4.0 + 1e-6;
                 assert!(
                     on_below || on_earlier,
-                    "strand {i} ({:?} {}) hangs at {p:?}",
+                    "strand {i} ({:?} {}) hangs at {p:?} ({:.4} from earlier)",
                     s.kind,
-                    s.loop_index
+                    s.loop_index,
+                    dist_to(p, &before)
                 );
             }
         }
