@@ -1094,33 +1094,42 @@ fn ladder(
 /// hanging from it, the fronts' first pieces across the bar are a little shorter than half a
 /// width; dropped, the next loop's first rung there lay 0.6 mm past the wall below with
 /// nothing under it (0.5 mm in air).
-fn keep_needed_shorts(loops: &mut [Vec<Polyline>], mut shorts: Vec<(usize, Polyline)>, step: f64) {
+fn keep_needed_shorts(loops: &mut [Vec<Polyline>], shorts: Vec<(usize, Polyline)>, step: f64) {
+    type Boxed = (Option<geo::Rect<f64>>, Polyline);
     let grow = 1.5 * step;
-    let near = |a: &Polyline, b: &Polyline| {
-        let (ba, bb) = (
-            crate::geometry::points_box(a),
-            crate::geometry::points_box(b),
-        );
-        crate::geometry::boxes_within(ba.as_ref(), bb.as_ref(), grow)
+    let near = |a: &Option<geo::Rect<f64>>, b: &Option<geo::Rect<f64>>| {
+        crate::geometry::boxes_within(a.as_ref(), b.as_ref(), grow)
     };
-    for i in (1..loops.len()).rev() {
-        if shorts.is_empty() {
-            break;
+    // Boxes once per piece (a ring's thousands of points), shorts by their loop.
+    let mut boxes: Vec<Vec<Option<geo::Rect<f64>>>> = loops
+        .iter()
+        .map(|l| l.iter().map(|p| crate::geometry::points_box(p)).collect())
+        .collect();
+    let mut by_loop: Vec<Vec<Boxed>> = vec![Vec::new(); loops.len()];
+    for (i, p) in shorts {
+        if let Some(v) = by_loop.get_mut(i) {
+            v.push((crate::geometry::points_box(&p), p));
         }
-        let (before, from) = loops.split_at_mut(i);
-        let (below, this) = (&mut before[i - 1], &from[0]);
-        let alone: Vec<&Polyline> = this
+    }
+    for i in (1..loops.len()).rev() {
+        if by_loop[i - 1].is_empty() {
+            continue;
+        }
+        let alone: Vec<&Option<geo::Rect<f64>>> = boxes[i]
             .iter()
-            .filter(|p| !below.iter().any(|q| near(p, q)))
+            .filter(|b| !boxes[i - 1].iter().any(|q| near(b, q)))
             .collect();
         if alone.is_empty() {
             continue;
         }
-        let (needed, rest): (Vec<_>, Vec<_>) = shorts
+        let needed: Vec<Boxed> = std::mem::take(&mut by_loop[i - 1])
             .into_iter()
-            .partition(|(k, q)| *k == i - 1 && alone.iter().any(|p| near(p, q)));
-        below.extend(needed.into_iter().map(|(_, q)| q));
-        shorts = rest;
+            .filter(|(b, _)| alone.iter().any(|a| near(a, b)))
+            .collect();
+        for (b, p) in needed {
+            boxes[i - 1].push(b);
+            loops[i - 1].push(p);
+        }
     }
 }
 
