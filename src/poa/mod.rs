@@ -335,7 +335,7 @@ fn notches_filled(area: MultiPolygon<f64>, below: &MultiPolygon<f64>, w: f64) ->
         return area;
     }
     let near = offset(below, w);
-    let near_share = shares_within(&added, &near);
+    let near_share = crate::geometry::shares_within(&added, &near);
     let kept: Vec<geo::Polygon<f64>> = added
         .0
         .into_iter()
@@ -350,48 +350,6 @@ fn notches_filled(area: MultiPolygon<f64>, below: &MultiPolygon<f64>, w: f64) ->
         return area;
     }
     union(&area, &MultiPolygon::new(kept))
-}
-
-/// The area of each polygon of `parts` (disjoint, as a boolean's output is) that lies in
-/// `within`. One boolean for all the parts, its pieces then credited to the part holding
-/// them: a hollow torus's bottom, its solid infill ending in a saw along the void, has
-/// hundreds of notches, and a boolean of each with the whole layer below took 100 ms a
-/// region. Parts meeting at a corner can come out of the boolean as one piece: those parts
-/// are measured on their own.
-fn shares_within(parts: &MultiPolygon<f64>, within: &MultiPolygon<f64>) -> Vec<f64> {
-    use geo::{BoundingRect, Intersects};
-    let mut share = vec![Some(0.0); parts.0.len()];
-    let index = crate::geometry::BoxIndex::new(parts);
-    for piece in &intersection(parts, within).0 {
-        let Some(b) = piece.bounding_rect() else {
-            continue;
-        };
-        let mut holders = index
-            .meeting([b.min().x, b.min().y], [b.max().x, b.max().y])
-            .filter(|&i| parts.0[i].intersects(piece));
-        match (holders.next(), holders.next()) {
-            (Some(i), None) => {
-                if let Some(s) = &mut share[i] {
-                    *s += piece.unsigned_area();
-                }
-            }
-            (Some(i), Some(j)) => {
-                for k in [i, j].into_iter().chain(holders) {
-                    share[k] = None;
-                }
-            }
-            (None, _) => {}
-        }
-    }
-    share
-        .into_iter()
-        .zip(&parts.0)
-        .map(|(s, p)| {
-            s.unwrap_or_else(|| {
-                intersection(&MultiPolygon::new(vec![p.clone()]), within).unsigned_area()
-            })
-        })
-        .collect()
 }
 
 /// [`plan`] from the [`windows`] made for `region` already.
@@ -1088,6 +1046,10 @@ fn ladder(
     })
 }
 
+/// How far (in steps) a piece's box may lie from the box of a piece of the loop before for
+/// that one to count as its support ([`order_loops`], [`keep_needed_shorts`]).
+const SUPPORT_REACH: f64 = 1.5;
+
 /// Puts back into `loops` the short pieces (loop index, piece) that a piece of the next loop
 /// needs: one with no piece of the loop before near it (within [`order_loops`]'s reach of a
 /// support) takes that loop's short pieces near it, and so on down. Where a bar meets a ring
@@ -1096,7 +1058,7 @@ fn ladder(
 /// nothing under it (0.5 mm in air).
 fn keep_needed_shorts(loops: &mut [Vec<Polyline>], shorts: Vec<(usize, Polyline)>, step: f64) {
     type Boxed = (Option<geo::Rect<f64>>, Polyline);
-    let grow = 1.5 * step;
+    let grow = SUPPORT_REACH * step;
     let near = |a: &Option<geo::Rect<f64>>, b: &Option<geo::Rect<f64>>| {
         crate::geometry::boxes_within(a.as_ref(), b.as_ref(), grow)
     };
@@ -1159,7 +1121,7 @@ fn order_loops(
         }
     }
     let n = pieces.len();
-    let grow = 1.5 * step;
+    let grow = SUPPORT_REACH * step;
     let meets = |a: &Option<geo::Rect<f64>>, b: &Option<geo::Rect<f64>>| {
         crate::geometry::boxes_within(a.as_ref(), b.as_ref(), grow)
     };
@@ -2598,29 +2560,6 @@ mod tests {
             loops[1]
         );
         assert_eq!(loops[2].len(), 1);
-    }
-
-    #[test]
-    fn each_part_s_share_within_an_area_is_its_own_boolean_s() {
-        // Three notches: one half inside `within`, one whole, one outside; two more meeting
-        // at a corner, a quarter of each inside (the boolean's pieces meet there too).
-        let parts = mp(vec![
-            rect(0.0, 0.0, 1.0, 2.0),
-            rect(2.0, 0.0, 3.0, 1.0),
-            rect(5.0, 5.0, 6.0, 6.0),
-            rect(0.0, 4.0, 1.0, 5.0),
-            rect(1.0, 5.0, 2.0, 6.0),
-        ]);
-        let within = mp(vec![rect(-1.0, -1.0, 4.0, 1.0), rect(0.5, 4.5, 1.5, 5.5)]);
-        let got = shares_within(&parts, &within);
-        for (p, share) in parts.0.iter().zip(&got) {
-            let own = intersection(&mp(vec![p.clone()]), &within).unsigned_area();
-            assert!((share - own).abs() < 1e-9, "{share} vs {own}");
-        }
-        let want = [1.0, 1.0, 0.0, 0.25, 0.25];
-        for (g, w) in got.iter().zip(want) {
-            assert!((g - w).abs() < 0.02, "{got:?}");
-        }
     }
 
     #[test]
