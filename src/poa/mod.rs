@@ -727,12 +727,15 @@ pub(super) fn plan_in(
     // before, as a narrow cantilever's ladder) and in the loop area as before.
     let mut rungs: Option<MultiPolygon<f64>> = None;
     let mut widened = false;
-    // Rungs stay a width clear of the loop area, its threads narrower than half a width
-    // left out (the loop area's thread down a spoke took the whole spoke).
+    // Rungs stay half a width clear of the loop area (the contour runs on its edge: the
+    // last rung bites into it as loops do into each other; a width clear, the front between
+    // printed nothing, and where a bar meets a ring hanging from it the ring's first loops
+    // hung past the last rung, 1.7 mm in air), its threads narrower than half a width left
+    // out (the loop area's thread down a spoke took the whole spoke).
     let rungs_in = |allowed: &MultiPolygon<f64>| {
         difference(
             &offset(allowed, -0.01),
-            &offset(&opening(&inner, w / 4.0), w),
+            &offset(&opening(&inner, w / 4.0), w / 2.0),
         )
     };
     // The front and the loop count where the fronts last began to print nothing.

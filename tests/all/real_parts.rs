@@ -2259,12 +2259,24 @@ fn a_ring_on_a_bar_through_its_post_is_held_from_the_bar() {
         slices.push(("ring on a bar, 0.6 mm nozzle".to_string(), d));
     }
     slices.extend(slices_with("ring_hang", &[]));
+    // By Cura with 0.6 mm lines at 0.3 mm: the rungs across the bar stopped a width short of
+    // the ring's loop area, and the ring's first loops at the junction hung (1.7 mm in air).
+    let ender = [
+        "line_width=0.6",
+        "wall_line_width_0=0.6",
+        "wall_line_count=2",
+        "layer_height=0.3",
+    ];
+    if let Some(d) = slice_cura(&part("ring_hang"), "creality_ender3", &ender) {
+        slices.push(("ring on a bar by Cura, 0.6 mm lines".to_string(), d));
+    }
     for (what, d) in slices {
         let (new, _) = rewrite(&d, BridgeMode::Auto);
         let (before, after) = before_after(&what, &d, &new);
         held_up(&what, &before, &after, 20.0);
+        let most = if what.contains("Cura, 0.6") { 1.0 } else { 2.0 };
         assert!(
-            after.in_air_mm <= 2.0 && after.time_s <= 1.3 * before.time_s,
+            after.in_air_mm <= most && after.time_s <= 1.3 * before.time_s,
             "{what}: {:.1} mm in air, {:.0} s ({:.0} as sliced)",
             after.in_air_mm,
             after.time_s,
